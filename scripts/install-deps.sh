@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Installs the Debian packages lobe needs to build, test and run its demo.
+# Idempotent: when every package is already installed it does nothing (no apt-get update).
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  zlib1g-dev libhdf5-dev libgdcm-dev libgdcm-tools libnifti2-dev libassimp-dev
+  libeigen3-dev libcgal-dev libgmp-dev libmpfr-dev libopencv-dev libsuitesparse-dev
+  libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
+  # real files the tests read: ITK's example MetaImages and pydicom's DICOM test files
+  insighttoolkit5-examples python3-pydicom
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present" >&2
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}" >&2
+$SUDO apt-get update
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"

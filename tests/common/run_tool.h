@@ -1,0 +1,52 @@
+#pragma once
+// Runs a tool as a child process and captures its exit code, stdout and stderr.
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+
+namespace lobe::test {
+
+struct ToolRun {
+    int exit_code = -1;
+    std::string out;
+    std::string err;
+};
+
+inline std::string shell_quote(const std::string& s)
+{
+    std::string q = "'";
+    for (char c : s) {
+        if (c == '\'') q += "'\\''";
+        else q += c;
+    }
+    return q + "'";
+}
+
+//! Runs `exe args...` (already quoted by the caller where needed) with stdout and stderr in
+//! temporary files beside `scratch`.
+inline ToolRun run_tool(const std::string& exe, const std::string& args, const std::filesystem::path& scratch)
+{
+    const auto out = scratch / "stdout.txt";
+    const auto err = scratch / "stderr.txt";
+    const std::string cmd = shell_quote(exe) + " " + args + " >" + shell_quote(out.string()) + " 2>" +
+                            shell_quote(err.string());
+    const int status = std::system(cmd.c_str());
+    ToolRun r;
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    auto slurp = [](const std::filesystem::path& p) {
+        std::ifstream f(p);
+        std::stringstream ss;
+        ss << f.rdbuf();
+        return ss.str();
+    };
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+}
+
+} // namespace lobe::test

@@ -1,0 +1,51 @@
+#pragma once
+// Where the tests find real files, and a scratch folder per test.
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+namespace lobe::test {
+
+//! ../shared/data (or $LOBE_DATA_DIR): real scans, never copied into the repository.
+inline std::filesystem::path data_dir()
+{
+    if (const char* env = std::getenv("LOBE_DATA_DIR"))
+        return env;
+    return LOBE_DATA_DIR;
+}
+
+//! ITK's example images, from Debian's insighttoolkit5-examples package.
+inline std::filesystem::path itk_data_dir()
+{
+    return "/usr/share/doc/insighttoolkit5-examples/examples/Data";
+}
+
+//! pydicom's test files, from Debian's python3-pydicom package.
+inline std::filesystem::path pydicom_data_dir()
+{
+    return "/usr/lib/python3/dist-packages/pydicom/data/test_files";
+}
+
+//! A fresh, empty folder for one test's outputs (removed and re-created on each call).
+inline std::filesystem::path scratch_dir()
+{
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    std::filesystem::path dir = std::filesystem::temp_directory_path() / "lobe-tests" /
+                                (std::string(info->test_suite_name()) + "." + info->name());
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+} // namespace lobe::test
+
+//! Skips the current test with a message when `path` does not exist.
+#define LOBE_REQUIRE_PATH(path)                                                                  \
+    do {                                                                                         \
+        if (!std::filesystem::exists(path))                                                      \
+            GTEST_SKIP() << "test data absent: " << (path).string()                              \
+                         << " (see ../shared/data/README.md or install-deps.sh)";                \
+    } while (0)

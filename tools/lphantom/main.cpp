@@ -1,0 +1,1 @@
+int main() { return 4; } // placeholder: replaced by the phantom work
