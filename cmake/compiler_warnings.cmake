@@ -4,7 +4,7 @@ add_library(lobe_warnings INTERFACE)
 target_compile_options(lobe_warnings INTERFACE
   $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor
     -Wold-style-cast -Wcast-align -Woverloaded-virtual -Wconversion
-    -Wnull-dereference -Wdouble-promotion -Wformat=2 -Wimplicit-fallthrough>
+    -Wdouble-promotion -Wformat=2 -Wimplicit-fallthrough>
   $<$<BOOL:${LOBE_WARNINGS_AS_ERRORS}>:-Werror>)
 install(TARGETS lobe_warnings EXPORT lobeTargets)
 

@@ -1,1 +1,100 @@
+#include "lobe/core/image3d.h"
+
 #include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace lobe::core;
+
+namespace {
+ImageGeometry rotated()
+{
+    ImageGeometry g;
+    g.size = {10, 20, 5};
+    g.spacing = {0.5, 0.75, 2.5};
+    g.origin = {-100.0, 50.0, -300.0};
+    const double a = 0.4;
+    // Rotation about z: axis 0 = (cos a, sin a, 0), axis 1 = (-sin a, cos a, 0), axis 2 = z.
+    g.direction = {std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a), 0, 0, 0, 1};
+    return g;
+}
+} // namespace
+
+TEST(Image3D, IndexIsXFastest)
+{
+    ImageGeometry g;
+    g.size = {4, 3, 2};
+    Image3D<int> img(g, 0);
+    EXPECT_EQ(img.data.size(), 24u);
+    EXPECT_EQ(img.index(1, 0, 0), 1u);
+    EXPECT_EQ(img.index(0, 1, 0), 4u);
+    EXPECT_EQ(img.index(0, 0, 1), 12u);
+    img.at(3, 2, 1) = 7;
+    EXPECT_EQ(img.data.back(), 7);
+    EXPECT_TRUE(img.contains(3, 2, 1));
+    EXPECT_FALSE(img.contains(4, 0, 0));
+    EXPECT_FALSE(img.contains(0, -1, 0));
+}
+
+TEST(Image3D, PhysicalPositionFollowsItk)
+{
+    const auto g = rotated();
+    // Voxel (0,0,0) sits at the origin.
+    const Vec3 p0 = g.index_to_physical(0, 0, 0);
+    EXPECT_DOUBLE_EQ(p0.x, -100.0);
+    EXPECT_DOUBLE_EQ(p0.y, 50.0);
+    // One step along i moves spacing[0] mm along axis 0 (the first column of the direction).
+    const Vec3 d = g.index_to_physical(1, 0, 0) - p0;
+    EXPECT_NEAR(d.x, 0.5 * std::cos(0.4), 1e-12);
+    EXPECT_NEAR(d.y, 0.5 * std::sin(0.4), 1e-12);
+    EXPECT_NEAR(norm(g.index_to_physical(0, 0, 3) - p0), 7.5, 1e-12);
+    // physical_to_index inverts it to rounding error.
+    const Vec3 ijk{3.25, 17.5, 4.0};
+    const Vec3 back = g.physical_to_index(g.index_to_physical(ijk));
+    EXPECT_NEAR(back.x, ijk.x, 1e-10);
+    EXPECT_NEAR(back.y, ijk.y, 1e-10);
+    EXPECT_NEAR(back.z, ijk.z, 1e-10);
+}
+
+TEST(Image3D, GeometryProblemsAreNamed)
+{
+    auto g = rotated();
+    EXPECT_EQ(geometry_problem(g), "");
+    g.spacing[1] = 0;
+    EXPECT_NE(geometry_problem(g).find("spacing along axis 1"), std::string::npos);
+    g = rotated();
+    g.spacing[2] = std::nan("");
+    EXPECT_NE(geometry_problem(g).find("spacing along axis 2"), std::string::npos);
+    g = rotated();
+    g.size[0] = 0;
+    EXPECT_NE(geometry_problem(g).find("size along axis 0"), std::string::npos);
+    g = rotated();
+    g.direction = {1, 1, 0, 0, 0, 0, 0, 0, 1}; // axes 0 and 1 equal: singular
+    EXPECT_NE(geometry_problem(g).find("singular"), std::string::npos);
+    g = rotated();
+    g.direction[0] = 2.0;
+    EXPECT_NE(geometry_problem(g).find("unit vector"), std::string::npos);
+    try {
+        validate_geometry(g, "scan.mhd");
+        FAIL();
+    } catch (const InvalidInputError& e) {
+        EXPECT_NE(std::string(e.what()).find("scan.mhd"), std::string::npos);
+    }
+}
+
+TEST(Image3D, SameGridComparesWithinTolerance)
+{
+    const auto a = rotated();
+    auto b = a;
+    EXPECT_TRUE(same_grid(a, b));
+    b.origin[0] += 5e-5; // below the default 1e-4 mm
+    EXPECT_TRUE(same_grid(a, b));
+    b.origin[0] += 1e-3;
+    EXPECT_FALSE(same_grid(a, b));
+    b = a;
+    b.size[2] = 6;
+    EXPECT_FALSE(same_grid(a, b));
+    b = a;
+    b.direction[1] = -b.direction[1];
+    EXPECT_FALSE(same_grid(a, b));
+}
