@@ -1,18 +1,207 @@
 #pragma once
 //! \file
-//! \brief The HDF5 pipeline container (placeholder; the HDF5 work fills it in).
+//! \brief The HDF5 pipeline container: one file per pipeline stage (lseg, lmesh, lsim) holding
+//! images, label volumes, surfaces, tetrahedral meshes and the provenance of every tool that
+//! contributed, with an XDMF sidecar so that ParaView opens it as it is.
+//!
+//! The schema is specified in docs/file-format.md. In short:
+//!     /                     attrs lobe_schema = "lobe", lobe_schema_version = 1, lobe_version, created
+//!     /provenance/NNN_tool  one group per tool run (attrs + parameters/ and timings/ sub-groups)
+//!     /images/NAME          [nz][ny][nx] dataset of the image's pixel type + spacing/origin/direction
+//!     /labels/NAME          [nz][ny][nx] uint8 label volume + label_values/label_names table
+//!     /surfaces/NAME/       vertices (n,3) float64, triangles (m,3) int32
+//!     /meshes/NAME/         vertices (n,3) float64, tets (m,4) int32, tet_labels (m) int32,
+//!                           quality/MEASURE (m) float64
+//! Geometry attributes are in ITK's (x, y, z) order although the dataset dimensions are (z, y, x).
+//!
+//! Errors: core::IoError when a file cannot be opened, read or written or is not HDF5 at all;
+//! core::InvalidInputError when an HDF5 file breaks the lobe schema (every message names the
+//! file and the object, e.g. "ct.h5: /images/ct has no spacing attribute") or when an argument
+//! is invalid.
+//!
+//! An Hdf5Writer or Hdf5Reader is used by one thread at a time; distinct objects may be used from
+//! different threads (Debian's HDF5 is the thread-safe build, which serialises its calls).
 
 #include "lobe/core/any_image.h"
+#include "lobe/core/tet_mesh.h"
+#include "lobe/core/tri_mesh.h"
 
+#include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace lobe::io {
 
-//! Reads image `name` (empty: the file's only image) from a lobe HDF5 container.
+//! The schema version this lobe writes, and the newest it reads.
+inline constexpr int kHdf5SchemaVersion = 1;
+
+//! One entry of a label table: a label value and its name ("liver", "portal_vein", ...).
+struct LabelEntry {
+    std::int32_t value = 0;
+    std::string name;
+};
+
+//! Label value -> name, in the order written. Values are unique; names are non-empty.
+using LabelTable = std::vector<LabelEntry>;
+
+//! A label volume with its table.
+struct LabelVolume {
+    core::LabelImage3D image;
+    LabelTable table; //!< empty if the file has none
+};
+
+//! One value per element (tet) of a mesh, e.g. a quality measure.
+struct ElementArray {
+    std::string name;           //!< e.g. "min_dihedral_angle"; [A-Za-z0-9_.-], unique per mesh
+    std::vector<double> values; //!< one per tet
+    std::string units;          //!< e.g. "degree"; empty = dimensionless (not stored)
+};
+
+//! A tetrahedral mesh as the container holds it.
+struct TetMeshData {
+    core::TetMesh mesh;
+    std::vector<ElementArray> quality; //!< per-tet arrays, in the order written
+    LabelTable tissues;                //!< names of the tet labels; empty if the file has none
+};
+
+//! What one tool run did: stored as /provenance/NNN_<tool>.
+struct Provenance {
+    std::string tool;         //!< e.g. "lmesh"; must not be empty
+    std::string version;      //!< the tool's version
+    std::string command_line; //!< as typed (see join_command_line)
+    std::string started;      //!< ISO 8601 UTC (see utc_timestamp); empty = the time of writing
+    std::vector<std::pair<std::string, std::string>> parameters; //!< (name, value), CLI order; unique names
+    std::vector<std::pair<std::string, double>> timings;         //!< (step, seconds), run order; unique steps
+};
+
+//! Header of an image without its pixels.
+struct ImageInfo {
+    core::PixelType pixel_type = core::PixelType::UInt8;
+    core::ImageGeometry geometry;
+};
+
+//! Options of Hdf5Writer.
+struct Hdf5WriteParams {
+    int gzip_level = 4;     //!< deflate level 0 (no compression) .. 9; shuffle is on whenever deflate is
+    bool checksum = true;   //!< Fletcher-32 checksum per chunk, so corruption is an error, not wrong data
+    bool write_xdmf = true; //!< write the XDMF sidecar (the path with extension .xdmf) on commit
+};
+
+//! Current time as ISO 8601 UTC, e.g. "2024-05-01T12:34:56Z".
+std::string utc_timestamp();
+
+//! The command line as one string; arguments holding spaces or shell metacharacters are
+//! single-quoted so that the string can be pasted back into a shell.
+std::string join_command_line(int argc, const char* const argv[]);
+
+class Hdf5Reader;
+
+//! Writes one container. Everything goes to a temporary sibling of `path`; commit() moves the
+//! finished file (and its XDMF sidecar) into place. A writer destroyed without commit() removes
+//! its temporary, so a failed run never leaves a half file and an existing file at `path` stays
+//! untouched until commit(). Names of items match [A-Za-z0-9_][A-Za-z0-9_.-]* (at most 255 chars)
+//! and are unique per kind. Each write checks its arguments before touching the file, so a
+//! refused write leaves the writer usable.
+class Hdf5Writer {
+public:
+    //! \param path final file name (conventionally .h5); its directory must exist
+    //! \throw core::InvalidInputError for bad params or a .xdmf path, core::IoError if the
+    //!        temporary cannot be created
+    explicit Hdf5Writer(std::filesystem::path path, const Hdf5WriteParams& params = {});
+    ~Hdf5Writer();
+    Hdf5Writer(Hdf5Writer&&) noexcept;
+    Hdf5Writer& operator=(Hdf5Writer&&) noexcept;
+    Hdf5Writer(const Hdf5Writer&) = delete;
+    Hdf5Writer& operator=(const Hdf5Writer&) = delete;
+
+    //! The final path given to the constructor.
+    const std::filesystem::path& path() const;
+
+    //! Writes /images/<name> in the image's own pixel type.
+    //! \throw core::InvalidInputError for a bad name, duplicate, invalid geometry or data size
+    void write_image(const std::string& name, const core::AnyImage& image);
+
+    //! Writes /labels/<name> with its label table (values must be 0..255).
+    void write_labels(const std::string& name, const core::LabelImage3D& labels, const LabelTable& table = {});
+
+    //! Writes /surfaces/<name>. \throw core::InvalidInputError if core::mesh_problem() finds an
+    //! index out of range or a repeated vertex, or a coordinate is not finite
+    void write_surface(const std::string& name, const core::TriMesh& mesh);
+
+    //! Writes /meshes/<name> with per-tet arrays (each must have one value per tet) and an optional
+    //! table naming the tet labels. \throw core::InvalidInputError if core::mesh_problem() rejects
+    //! the mesh (index range, one label per tet, positive orientation) or an array has the wrong size
+    void write_tet_mesh(const std::string& name, const core::TetMesh& mesh,
+                        const std::vector<ElementArray>& quality = {}, const LabelTable& tissues = {});
+
+    //! Appends a provenance record as /provenance/NNN_<tool>, NNN counting from 000 in call order.
+    void write_provenance(const Provenance& record);
+
+    //! Appends every provenance record of `input`, oldest first, so that each stage keeps the
+    //! history of the stages before it. Call it before write_provenance() for the current run.
+    void copy_provenance(const Hdf5Reader& input);
+
+    //! Closes the file, writes the XDMF sidecar and moves both into place. The writer accepts
+    //! nothing afterwards. \throw core::IoError if closing, writing or renaming fails
+    void commit();
+
+private:
+    struct Impl;
+    Impl& impl(); // throws if moved from
+    std::unique_ptr<Impl> impl_;
+};
+
+//! Reads a container. The constructor checks the root attributes; each read checks the item it
+//! reads (ranks, dimensions against lobe/io/limits.h, types, index ranges, geometry).
+class Hdf5Reader {
+public:
+    //! \throw core::IoError (missing, unreadable, not HDF5), core::InvalidInputError (not a lobe
+    //!        container, missing root attributes, schema version newer than kHdf5SchemaVersion)
+    explicit Hdf5Reader(const std::filesystem::path& path);
+    ~Hdf5Reader();
+    Hdf5Reader(Hdf5Reader&&) noexcept;
+    Hdf5Reader& operator=(Hdf5Reader&&) noexcept;
+    Hdf5Reader(const Hdf5Reader&) = delete;
+    Hdf5Reader& operator=(const Hdf5Reader&) = delete;
+
+    const std::filesystem::path& path() const;
+    int schema_version() const;
+    const std::string& lobe_version() const; //!< version of the lobe that wrote the file
+    const std::string& created() const;      //!< ISO 8601 UTC
+
+    //! Names of the items of each kind, in the order written (empty if the group is absent).
+    std::vector<std::string> images() const;
+    std::vector<std::string> labels() const;
+    std::vector<std::string> surfaces() const;
+    std::vector<std::string> tet_meshes() const;
+
+    //! Pixel type and geometry of /images/<name>, without reading the pixels.
+    ImageInfo image_info(const std::string& name) const;
+
+    core::AnyImage read_image(const std::string& name) const;
+    LabelVolume read_labels(const std::string& name) const;
+    core::TriMesh read_surface(const std::string& name) const;
+    TetMeshData read_tet_mesh(const std::string& name) const;
+
+    //! Every provenance record, oldest first.
+    std::vector<Provenance> provenance() const;
+
+private:
+    struct Impl;
+    const Impl& impl() const; // throws if moved from
+    std::unique_ptr<Impl> impl_;
+};
+
+//! Reads image `name` from a container: "ct" looks in /images then /labels; "images/ct" or
+//! "labels/liver" is explicit; empty = the file's only image or label volume (an error listing
+//! them if there are none or several). Label volumes come back as uint8 images.
 core::AnyImage read_hdf5_image(const std::filesystem::path& path, const std::string& name = {});
 
-//! Writes a container holding one image named `name`, atomically, with its XDMF sidecar.
-void write_hdf5_image(const std::filesystem::path& path, const core::AnyImage& image, const std::string& name = "image");
+//! Writes a container holding one image /images/<name>, atomically, with its XDMF sidecar.
+void write_hdf5_image(const std::filesystem::path& path, const core::AnyImage& image,
+                      const std::string& name = "image");
 
 } // namespace lobe::io

@@ -1,0 +1,43 @@
+#pragma once
+// The XDMF sidecar of an HDF5 container: what the writer put into the file, described so that
+// ParaView can read the heavy data straight from the .h5 (docs/file-format.md, "XDMF sidecar").
+
+#include "lobe/core/any_image.h"
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace lobe::io::detail {
+
+struct XdmfVolume {
+    std::string name;          // item name; the dataset is /<group>/<name>
+    core::PixelType pixel_type;
+    core::ImageGeometry geometry;
+};
+
+struct XdmfSurface {
+    std::string name;          // /surfaces/<name>/{vertices,triangles}
+    std::size_t vertices = 0;
+    std::size_t triangles = 0;
+};
+
+struct XdmfTetMesh {
+    std::string name;          // /meshes/<name>/{vertices,tets,tet_labels,quality/<q>}
+    std::size_t vertices = 0;
+    std::size_t tets = 0;
+    std::vector<std::string> quality;
+};
+
+struct XdmfContents {
+    std::vector<XdmfVolume> images;
+    std::vector<XdmfVolume> labels;
+    std::vector<XdmfSurface> surfaces;
+    std::vector<XdmfTetMesh> meshes;
+};
+
+// The XDMF 3 document describing `contents`, whose heavy data lives in `h5_file_name`
+// (a file name relative to the XDMF file, normally the container's own file name).
+std::string xdmf_document(const XdmfContents& contents, const std::string& h5_file_name);
+
+} // namespace lobe::io::detail
