@@ -35,16 +35,11 @@ using core::InvalidInputError;
 using core::IoError;
 
 constexpr const char* kSchemaName = "lobe";
-// A mesh with more vertices or elements than this is a corrupt header, not a liver.
-constexpr std::size_t kMaxMeshElements = std::size_t(1) << 28;
 // Entries of a label table; links per group and attributes per object a reader looks at.
 constexpr std::size_t kMaxTableEntries = 1 << 16;
 constexpr std::size_t kMaxChildren = 1 << 16;
 constexpr std::size_t kMaxNameLength = 255;
 constexpr std::size_t kMaxStringBytes = std::size_t(1) << 24;
-// deflate cannot expand data by more than about 1032:1; a dataset claiming more raw bytes than
-// that per stored byte is lying, and believing it would make us allocate for nothing.
-constexpr double kMaxDeflateRatio = 1100.0;
 // Chunks of at most 1 MiB: HDF5's default chunk cache holds one, and deflate works well on it.
 constexpr std::size_t kChunkBytes = std::size_t(1) << 20;
 
@@ -698,7 +693,7 @@ void check_stored(const DatasetView& v, std::size_t raw_bytes)
     if (raw_bytes == 0)
         return;
     const hsize_t stored = H5Dget_storage_size(v.ds.get());
-    if (stored == 0 || static_cast<double>(stored) * kMaxDeflateRatio < static_cast<double>(raw_bytes))
+    if (stored == 0 || static_cast<double>(stored) * detail::kMaxDeflateRatio < static_cast<double>(raw_bytes))
         throw InvalidInputError(v.where + " claims " + std::to_string(raw_bytes) + " bytes of data but stores only " +
                                 std::to_string(stored));
 }

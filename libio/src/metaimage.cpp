@@ -26,9 +26,6 @@ using core::PixelType;
 
 // A header longer than this is not a header: a binary file handed to the reader by mistake.
 constexpr std::size_t kMaxHeaderBytes = 1 << 20;
-// zlib cannot expand data by more than about 1032:1; a header promising more is lying, and
-// believing it would make us allocate for nothing.
-constexpr double kMaxDeflateRatio = 1100.0;
 
 struct ElementTypeName {
     const char* name;
@@ -359,7 +356,7 @@ std::size_t payload_bytes(const MetaImageHeader& h)
 
 std::string inflate_payload(std::string_view compressed, std::size_t expected, const std::string& where)
 {
-    if (static_cast<double>(expected) > kMaxDeflateRatio * static_cast<double>(compressed.size()) + 1024.0)
+    if (static_cast<double>(expected) > detail::kMaxDeflateRatio * static_cast<double>(compressed.size()) + 1024.0)
         throw InvalidInputError(where + ": " + std::to_string(compressed.size()) +
                                 " bytes of compressed data cannot hold the " + std::to_string(expected) +
                                 " bytes the header describes");

@@ -51,9 +51,6 @@ constexpr int kNifti1HeaderSize = 348;
 constexpr int kNifti2HeaderSize = 540;
 constexpr int kMinVoxOffset = 352; // header + 4-byte extension flag
 constexpr int kMaxDim = 32767;     // dim[] is int16 in NIfTI-1
-// deflate never expands more than 1032:1, so a .nii.gz whose header promises more data than
-// that is truncated or lying, and is refused before the voxels are allocated.
-constexpr std::uint64_t kMaxDeflateRatio = 1032;
 
 // nifti_clib reports errors on stderr unless its debug level is 0; we throw our own messages.
 void quiet_nifti_clib() { nifti_set_debug_level(0); }
@@ -402,10 +399,12 @@ void check_data_size(const NiftiHeader& hdr, const fs::path& path)
         throw IoError(name + ": truncated: the header promises " + std::to_string(need) + " bytes (" + what +
                       " voxels from byte " + std::to_string(hdr.data_offset) + ") but the file has " +
                       std::to_string(have));
-    if (hdr.compressed && need > have * kMaxDeflateRatio)
+    // A .nii.gz promising more than deflate can expand to is refused before allocating.
+    const auto max_expanded = static_cast<std::uint64_t>(static_cast<double>(have) * detail::kMaxDeflateRatio);
+    if (hdr.compressed && need > max_expanded)
         throw IoError(name + ": truncated or corrupt: the header promises " + std::to_string(need) +
                       " bytes (" + what + ") but a gzip stream of " + std::to_string(have) +
-                      " bytes cannot expand to more than " + std::to_string(have * kMaxDeflateRatio));
+                      " bytes cannot expand to more than " + std::to_string(max_expanded));
 }
 
 NiftiHeader load_header(const fs::path& path)

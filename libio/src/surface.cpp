@@ -2,6 +2,8 @@
 
 #include "lobe/io/surface.h"
 
+#include "lobe/io/limits.h"
+
 #include "lobe/core/errors.h"
 
 #include <assimp/Exporter.hpp>
@@ -27,9 +29,6 @@ namespace {
 
 using core::InvalidInputError;
 using core::IoError;
-
-// A surface with more vertices or triangles than this is a corrupt file, not an organ.
-constexpr std::size_t kMaxMeshElements = std::size_t(1) << 28;
 
 struct Format {
     const char* extension;

@@ -12,6 +12,10 @@
 
 namespace lobe::io::detail {
 
+//! deflate cannot expand data by more than about 1032:1; a header claiming more raw bytes per
+//! compressed byte is lying, and believing it would make a reader allocate for nothing.
+inline constexpr double kMaxDeflateRatio = 1100.0;
+
 //! Product of the dimensions, checked for overflow and against max_voxels.
 //! \throw core::InvalidInputError naming `what`.
 inline std::size_t checked_voxel_count(const std::array<std::int64_t, 3>& dims, const std::string& what)

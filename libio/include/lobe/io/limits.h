@@ -10,4 +10,8 @@ namespace lobe::io {
 //! A header asking for more is treated as corrupt rather than allocated.
 inline constexpr std::size_t kMaxVoxels = std::size_t(1) << 31;
 
+//! Largest mesh any reader or writer accepts: 2^28 vertices, triangles or tets. A mesh with
+//! more is a corrupt header, not a liver.
+inline constexpr std::size_t kMaxMeshElements = std::size_t(1) << 28;
+
 } // namespace lobe::io
