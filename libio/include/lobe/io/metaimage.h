@@ -7,7 +7,7 @@
 //! Origin) and ElementSpacing; ElementDataFile = LOCAL or a relative or absolute file name;
 //! HeaderSize (including -1, "data at the end"); ElementNumberOfChannels; ASCII data
 //! (BinaryData = False). Not supported, with a clear error: ElementDataFile = LIST or a
-//! file-name pattern. See docs/file-format.md for the field-by-field mapping.
+//! file-name pattern. See docs/formats/metaimage.md for the field-by-field mapping.
 //!
 //! Geometry follows ITK: TransformMatrix lists the image axes one after another (axis 0 first),
 //! i.e. element (r * NDims + c) is component c of axis r; Offset is the physical position of
