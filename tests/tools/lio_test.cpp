@@ -1,1 +1,178 @@
+// lio run as a program: exit codes, messages, outputs.
+#include "lobe/io/hdf5.h"
+#include "lobe/io/metaimage.h"
+
+#include "common/run_tool.h"
+#include "common/test_data.h"
+
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+using namespace lobe;
+namespace fs = std::filesystem;
+
+namespace {
+
+test::ToolRun lio(const std::string& args, const fs::path& scratch)
+{
+    return test::run_tool(LIO_EXE, args, scratch);
+}
+
+fs::path small_image(const fs::path& dir)
+{
+    core::ImageGeometry g;
+    g.size = {4, 3, 2};
+    g.spacing = {0.5, 0.75, 2.0};
+    g.origin = {-10, 20, -30};
+    core::Image3D<std::int16_t> img(g);
+    for (std::size_t i = 0; i < img.data.size(); ++i)
+        img.data[i] = static_cast<std::int16_t>(static_cast<int>(i) - 5);
+    io::write_metaimage(dir / "small.mha", img);
+    return dir / "small.mha";
+}
+
+} // namespace
+
+TEST(Lio, HelpVersionAndUsageErrors)
+{
+    const auto dir = test::scratch_dir();
+    auto r = lio("--help", dir);
+    EXPECT_EQ(r.exit_code, 0);
+    EXPECT_NE(r.out.find("info"), std::string::npos);
+    EXPECT_NE(r.out.find("convert"), std::string::npos);
+    r = lio("--version", dir);
+    EXPECT_EQ(r.exit_code, 0);
+    EXPECT_NE(r.out.find(LOBE_VERSION_STRING), std::string::npos);
+    r = lio("", dir); // a subcommand is required
+    EXPECT_EQ(r.exit_code, 1);
+    r = lio("convert only-one-arg.mha", dir);
+    EXPECT_EQ(r.exit_code, 1);
+}
+
+TEST(Lio, InfoPrintsGeometryTypeAndRange)
+{
+    const auto dir = test::scratch_dir();
+    const auto img = small_image(dir);
+    auto r = lio("info " + test::shell_quote(img.string()), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("MetaImage"), std::string::npos);
+    EXPECT_NE(r.out.find("int16"), std::string::npos);
+    EXPECT_NE(r.out.find("4 x 3 x 2"), std::string::npos);
+    EXPECT_NE(r.out.find("0.5 x 0.75 x 2.0 mm"), std::string::npos);
+    EXPECT_NE(r.out.find("-5 .. 18"), std::string::npos); // values i - 5 for i in 0..23
+
+    r = lio("info --json " + test::shell_quote(img.string()), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["size"], nlohmann::json({4, 3, 2}));
+    EXPECT_EQ(j["spacing"][1].get<double>(), 0.75);
+    EXPECT_EQ(j["origin"][2].get<double>(), -30.0);
+    EXPECT_EQ(j["pixel_type"], "int16");
+    EXPECT_EQ(j["max"].get<double>(), 18.0);
+}
+
+TEST(Lio, InfoOnTheDicomSeries)
+{
+    const auto series = test::data_dir() / "ct-dicom-jpeg2000" / "dicom";
+    LOBE_REQUIRE_PATH(series);
+    const auto dir = test::scratch_dir();
+    const auto r = lio("info " + test::shell_quote(series.string()), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    // The acceptance line: 512 x 512 x 20, spacing 0.977 x 0.977 x 2.0.
+    EXPECT_NE(r.out.find("512 x 512 x 20"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("0.977 x 0.977 x 2.0 mm"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("DICOM"), std::string::npos);
+}
+
+TEST(Lio, BadInputNamesTheFileAndExitsTwo)
+{
+    const auto dir = test::scratch_dir();
+    auto r = lio("info " + test::shell_quote((dir / "missing.mhd").string()), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("missing.mhd"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r.err;
+
+    std::ofstream(dir / "broken.mha") << "NDims = 3\nDimSize = 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n";
+    r = lio("info " + test::shell_quote((dir / "broken.mha").string()), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("broken.mha"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("DimSize"), std::string::npos) << r.err;
+}
+
+TEST(Lio, ConvertsBetweenFormats)
+{
+    const auto dir = test::scratch_dir();
+    const auto img = small_image(dir);
+    const auto original = std::get<core::ImageI16>(io::read_metaimage(img));
+    for (const char* out : {"a.nii.gz", "a.h5", "a.mhd"}) {
+        SCOPED_TRACE(out);
+        const auto r = lio("--quiet convert " + test::shell_quote(img.string()) + " " +
+                               test::shell_quote((dir / out).string()),
+                           dir);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_TRUE(r.err.empty()) << "--quiet printed: " << r.err;
+        ASSERT_TRUE(fs::exists(dir / out));
+    }
+    // Through NIfTI and back to MetaImage: values exact, geometry within float32 precision.
+    const auto r = lio("convert " + test::shell_quote((dir / "a.nii.gz").string()) + " " +
+                           test::shell_quote((dir / "b.mha").string()) + " --type float32",
+                       dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("wrote"), std::string::npos); // progress on stderr
+    const auto back = std::get<core::Image3D<float>>(io::read_metaimage(dir / "b.mha"));
+    for (std::size_t i = 0; i < back.data.size(); ++i)
+        ASSERT_EQ(back.data[i], static_cast<float>(original.data[i]));
+    EXPECT_TRUE(core::same_grid(back, original, 1e-4));
+}
+
+TEST(Lio, FailedConvertWritesNothing)
+{
+    const auto dir = test::scratch_dir();
+    const auto img = small_image(dir);
+    auto r = lio("convert " + test::shell_quote(img.string()) + " " + test::shell_quote((dir / "out.png").string()), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("out.png"), std::string::npos);
+    EXPECT_FALSE(fs::exists(dir / "out.png"));
+    r = lio("convert " + test::shell_quote((dir / "nope.nii").string()) + " " +
+                test::shell_quote((dir / "out.mha").string()),
+            dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_FALSE(fs::exists(dir / "out.mha"));
+    r = lio("convert " + test::shell_quote(img.string()) + " out.mha --type complex", dir);
+    EXPECT_EQ(r.exit_code, 1);
+    // Only our inputs and the captured stdout/stderr remain: no temporaries.
+    for (const auto& e : fs::directory_iterator(dir))
+        EXPECT_EQ(e.path().filename().string().rfind(".tmp-", 0), std::string::npos) << e.path();
+}
+
+TEST(Lio, Hdf5OutputRecordsProvenanceAndKeepsHistory)
+{
+    const auto dir = test::scratch_dir();
+    const auto img = small_image(dir);
+    auto r = lio("convert " + test::shell_quote(img.string()) + " " + test::shell_quote((dir / "a.h5").string()) +
+                     " --name ct",
+                 dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    r = lio("convert " + test::shell_quote((dir / "a.h5").string()) + " " + test::shell_quote((dir / "b.h5").string()) +
+                " --type float32 --quiet",
+            dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const io::Hdf5Reader reader(dir / "b.h5");
+    EXPECT_EQ(reader.images(), std::vector<std::string>{"image"});
+    const auto history = reader.provenance();
+    ASSERT_EQ(history.size(), 2u); // the first conversion, copied, then this one
+    EXPECT_EQ(history[0].tool, "lio");
+    EXPECT_NE(history[0].command_line.find("--name ct"), std::string::npos);
+    const auto find = [](const io::Provenance& p, const std::string& key) {
+        for (const auto& [k, v] : p.parameters)
+            if (k == key)
+                return v;
+        return std::string("<absent>");
+    };
+    EXPECT_EQ(find(history[0], "convert.name"), "ct");
+    EXPECT_EQ(find(history[1], "convert.type"), "float32");
+    EXPECT_EQ(find(history[1], "quiet"), "true");
+    ASSERT_EQ(history[1].timings.size(), 2u);
+    EXPECT_EQ(history[1].timings[0].first, "read");
+    EXPECT_GE(history[1].timings[0].second, 0.0);
+}

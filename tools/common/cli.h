@@ -2,6 +2,8 @@
 // Plumbing every lobe tool shares: exit codes, error reporting, progress on stderr, timings and
 // the provenance (parameters, timings) each tool records in the files it writes.
 
+#include "lobe/io/hdf5.h"
+
 #include <CLI/CLI.hpp>
 
 #include <chrono>
@@ -29,8 +31,6 @@ int run_tool(CLI::App& app, int argc, char** argv, const std::function<int()>& b
 //! Adds the options every tool has: --quiet and --version.
 void add_common_options(CLI::App& app, bool& quiet);
 
-//! The command line as one shell-quoted string, for provenance.
-std::string command_line(int argc, char** argv);
 
 //! Progress and status lines on stderr, silenced by --quiet.
 class Progress {
@@ -70,6 +70,25 @@ private:
         entries_.emplace_back(name, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     }
     std::vector<std::pair<std::string, double>> entries_;
+};
+
+//! What a run records in the files it writes (docs/file-format.md, /provenance): the tool,
+//! version, command line, start time, the value of every option (given or default) and the
+//! timings. Construct it at the start of main; call provenance() when writing.
+class RunRecord {
+public:
+    RunRecord(const CLI::App& app, int argc, char** argv);
+
+    //! The record, with options read from the (parsed) app now. Options of the subcommand that
+    //! ran are prefixed with its name ("convert.type"); positional arguments keep their name.
+    io::Provenance provenance() const;
+
+    Timings timings;
+
+private:
+    const CLI::App& app_;
+    std::string command_line_;
+    std::string started_;
 };
 
 } // namespace lobe::tools

@@ -2,6 +2,7 @@
 #include "common/cli.h"
 
 #include "lobe/io/dicom.h"
+#include "lobe/io/hdf5.h"
 #include "lobe/io/image_io.h"
 
 #include <nlohmann/json.hpp>
@@ -122,6 +123,7 @@ int main(int argc, char** argv)
     bool quiet = false;
     tools::add_common_options(app, quiet);
     app.require_subcommand(1);
+    app.fallthrough(); // --quiet may follow the subcommand (subcommands inherit this)
 
     std::string info_path;
     bool json = false;
@@ -129,22 +131,34 @@ int main(int argc, char** argv)
     info_cmd->add_option("PATH", info_path, "Image file or DICOM folder")->required();
     info_cmd->add_flag("--json", json, "Machine-readable output");
 
-    std::string in, out, type;
+    std::string in, out, type, name = "image";
     auto* convert_cmd = app.add_subcommand("convert", "Convert an image; the output format follows OUT's extension");
     convert_cmd->add_option("IN", in, "Input image file or DICOM folder")->required();
     convert_cmd->add_option("OUT", out, "Output file (.mhd, .mha, .nii, .nii.gz, .h5)")->required();
     convert_cmd->add_option("--type", type, "Convert pixels to this type (rounding, saturating)")
         ->check(CLI::IsMember({"uint8", "int8", "int16", "uint16", "int32", "uint32", "float32", "float64"}));
+    convert_cmd->add_option("--name", name, "Name of the image in an HDF5 output (/images/NAME)")->capture_default_str();
 
+    tools::RunRecord record(app, argc, argv);
     return tools::run_tool(app, argc, argv, [&] {
         const tools::Progress progress("lio", quiet);
         if (*info_cmd)
             return info(info_path, json);
-        tools::Timings timings;
+        auto& timings = record.timings;
         const Loaded l = timings.time("read", [&] { return load(in); });
         progress.message("read " + in + " (" + io::format_name(l.format) + ")");
         const core::AnyImage converted = cast_to(l.image, type);
-        timings.time("write", [&] { io::write_image(out, converted); });
+        if (io::image_format(out) != io::ImageFormat::Hdf5) {
+            timings.time("write", [&] { io::write_image(out, converted); });
+        } else {
+            // An HDF5 output records this run (and the history of an HDF5 input) as provenance.
+            io::Hdf5Writer writer(out);
+            timings.time("write", [&] { writer.write_image(name, converted); });
+            if (l.format == io::ImageFormat::Hdf5)
+                writer.copy_provenance(io::Hdf5Reader(in));
+            writer.write_provenance(record.provenance());
+            writer.commit();
+        }
         progress.message("wrote " + out + " in " + short_number(timings.total()) + " s");
         return static_cast<int>(tools::kExitOk);
     });

@@ -1,0 +1,124 @@
+// Reading and writing the default phantom CT (512 x 512 x 80 int16, 40 MiB) in every format,
+// beside the floor that any reader must pay: reading or writing the same bytes with stdio.
+// Counters: MiB/s of image data and the file size relative to the raw bytes.
+#include "lobe/io/hdf5.h"
+#include "lobe/io/metaimage.h"
+#include "lobe/io/nifti.h"
+#include "lphantom/phantom.h"
+
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace lobe;
+
+namespace {
+
+const core::ImageI16& ct()
+{
+    static const core::ImageI16 image = phantom::generate_phantom().ct;
+    return image;
+}
+
+// One folder per case, so that the file size counter sees only that format's files.
+fs::path case_file(const std::string& name)
+{
+    const fs::path dir = fs::temp_directory_path() / "lobe-io-bench" / name;
+    fs::create_directories(dir);
+    return dir / name;
+}
+
+std::size_t bytes() { return ct().data.size() * sizeof(std::int16_t); }
+
+void report(benchmark::State& state, const fs::path& file)
+{
+    state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations()) * static_cast<std::int64_t>(bytes()));
+    std::size_t size = 0; // every file the format wrote (header + data, .h5 + .xdmf)
+    for (const auto& e : fs::directory_iterator(file.parent_path()))
+        size += fs::file_size(e.path());
+    state.counters["file_vs_raw"] = static_cast<double>(size) / static_cast<double>(bytes());
+}
+
+void write_in(const fs::path& p)
+{
+    const auto ext = p.extension().string();
+    if (ext == ".h5")
+        io::write_hdf5_image(p, ct(), "ct");
+    else if (ext == ".nii" || ext == ".gz")
+        io::write_nifti(p, ct());
+    else {
+        io::MetaImageWriteParams params;
+        params.compress = p.stem().string().find("zlib") != std::string::npos;
+        io::write_metaimage(p, ct(), params);
+    }
+}
+
+core::AnyImage read_in(const fs::path& p)
+{
+    const auto ext = p.extension().string();
+    if (ext == ".h5")
+        return io::read_hdf5_image(p, "ct");
+    if (ext == ".nii" || ext == ".gz")
+        return io::read_nifti(p);
+    return io::read_metaimage(p);
+}
+
+void BM_StdioWrite(benchmark::State& state)
+{
+    const auto p = case_file("stdio.raw");
+    for (auto _ : state) {
+        std::FILE* f = std::fopen(p.c_str(), "wb");
+        std::fwrite(ct().data.data(), 1, bytes(), f);
+        std::fclose(f);
+    }
+    report(state, p);
+}
+
+void BM_StdioRead(benchmark::State& state)
+{
+    const auto p = case_file("stdio.raw");
+    std::vector<std::int16_t> buf(ct().data.size());
+    for (auto _ : state) {
+        std::FILE* f = std::fopen(p.c_str(), "rb");
+        benchmark::DoNotOptimize(std::fread(buf.data(), 1, bytes(), f));
+        std::fclose(f);
+    }
+    report(state, p);
+}
+
+void BM_Write(benchmark::State& state, const char* name)
+{
+    const auto p = case_file(name);
+    for (auto _ : state)
+        write_in(p);
+    report(state, p);
+}
+
+void BM_Read(benchmark::State& state, const char* name)
+{
+    const auto p = case_file(name);
+    write_in(p);
+    for (auto _ : state)
+        benchmark::DoNotOptimize(read_in(p));
+    report(state, p);
+}
+
+} // namespace
+
+BENCHMARK(BM_StdioWrite)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_StdioRead)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Write, metaimage_raw, "ct_raw.mhd")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Read, metaimage_raw, "ct_raw.mhd")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Write, metaimage_zlib, "ct_zlib.mha")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Read, metaimage_zlib, "ct_zlib.mha")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Write, nifti, "ct.nii")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Read, nifti, "ct.nii")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Write, nifti_gz, "ct.nii.gz")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Read, nifti_gz, "ct.nii.gz")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Write, hdf5_gzip, "ct.h5")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Read, hdf5_gzip, "ct.h5")->Unit(benchmark::kMillisecond);
+
+BENCHMARK_MAIN();
