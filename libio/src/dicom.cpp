@@ -914,8 +914,8 @@ Series choose_series(std::vector<Series> all, const std::string& uid, const std:
             std::count_if(all.begin(), all.end(), [](const Series& s) { return s.problem().empty(); });
         if (readable > 1)
             throw InvalidInputError(source + ": holds " + std::to_string(readable) +
-                                    " DICOM series; choose one by its SeriesInstanceUID "
-                                    "(DicomReadParams::series_uid):" +
+                                    " DICOM series; choose one by its SeriesInstanceUID (the tools' --series option, "
+                                    "DicomReadParams::series_uid):" +
                                     listing);
         chosen = readable == 1
                      ? std::find_if(all.begin(), all.end(), [](const Series& s) { return s.problem().empty(); })

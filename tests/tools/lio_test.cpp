@@ -176,3 +176,32 @@ TEST(Lio, Hdf5OutputRecordsProvenanceAndKeepsHistory)
     EXPECT_EQ(history[1].timings[0].first, "read");
     EXPECT_GE(history[1].timings[0].second, 0.0);
 }
+
+TEST(Lio, ListsSeveralDicomSeriesAndReadsTheChosenOne)
+{
+    const auto src = test::pydicom_data_dir();
+    LOBE_REQUIRE_PATH(src / "CT_small.dcm");
+    const auto dir = test::scratch_dir();
+    const auto folder = dir / "two";
+    fs::create_directories(folder);
+    fs::copy_file(src / "CT_small.dcm", folder / "ct.dcm");
+    fs::copy_file(src / "MR_small.dcm", folder / "mr.dcm");
+    const std::string mr_uid = "1.3.6.1.4.1.5962.1.3.4.1.20040826185059.5457"; // MR_small's SeriesInstanceUID
+
+    auto r = lio("info " + test::shell_quote(folder.string()), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("holds 2 DICOM series"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(mr_uid), std::string::npos) << r.out;
+
+    // Converting needs a choice: without one it fails (exit 2) naming the series.
+    r = lio("convert " + test::shell_quote(folder.string()) + " " + test::shell_quote((dir / "mr.mha").string()), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("--series"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "mr.mha"));
+    r = lio("convert " + test::shell_quote(folder.string()) + " " + test::shell_quote((dir / "mr.mha").string()) +
+                " --series " + mr_uid,
+            dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto mr = io::read_metaimage(dir / "mr.mha");
+    EXPECT_EQ(core::geometry(mr).size, (std::array<int, 3>{64, 64, 1})); // MR_small is 64 x 64
+}

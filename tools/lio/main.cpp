@@ -42,12 +42,20 @@ struct Loaded {
     std::string detail; // e.g. the DICOM series
 };
 
-Loaded load(const std::filesystem::path& path)
+std::string uid_text(const std::string& uid) { return uid.empty() ? "(no SeriesInstanceUID)" : uid; }
+
+// Reads any image; for DICOM, the series `series_uid` (empty: the only one), with its notes
+// (skipped files, series passed over) as progress messages.
+Loaded load(const std::filesystem::path& path, const std::string& series_uid, const tools::Progress& progress)
 {
     const io::ImageFormat format = io::image_format(path);
     if (format == io::ImageFormat::Dicom) {
-        io::DicomSeries s = io::read_dicom_series(path);
-        std::string detail = s.modality + " series " + s.series_uid + ", " + std::to_string(s.files.size()) + " files";
+        io::DicomReadParams params;
+        params.series_uid = series_uid;
+        io::DicomSeries s = io::read_dicom_series(path, params);
+        for (const auto& note : s.notes)
+            progress.message(note);
+        std::string detail = s.modality + " series " + uid_text(s.series_uid) + ", " + std::to_string(s.files.size()) + " files";
         if (!s.description.empty())
             detail += ", \"" + s.description + "\"";
         return {std::move(s.image), format, detail};
@@ -55,9 +63,27 @@ Loaded load(const std::filesystem::path& path)
     return {io::read_image(path), format, {}};
 }
 
-int info(const std::filesystem::path& path, bool json)
+// A folder with several DICOM series: list them instead of choosing one.
+bool list_series(const std::filesystem::path& path)
 {
-    const Loaded l = load(path);
+    if (io::image_format(path) != io::ImageFormat::Dicom)
+        return false;
+    const auto all = io::list_dicom_series(path);
+    if (all.size() < 2)
+        return false;
+    std::cout << path.string() << " holds " << all.size() << " DICOM series; choose one with --series UID:\n";
+    for (const auto& s : all)
+        std::cout << "  " << uid_text(s.series_uid) << "  " << s.modality << "  " << s.size[0] << " x " << s.size[1]
+                  << " x " << s.slices << (s.description.empty() ? "" : "  \"" + s.description + "\"")
+                  << (s.problem.empty() ? "" : "  (unreadable: " + s.problem + ")") << "\n";
+    return true;
+}
+
+int info(const std::filesystem::path& path, const std::string& series_uid, bool json, const tools::Progress& progress)
+{
+    if (series_uid.empty() && !json && list_series(path))
+        return tools::kExitOk;
+    const Loaded l = load(path, series_uid, progress);
     const core::ImageGeometry& g = core::geometry(l.image);
     const auto [lo, hi] = core::value_range(l.image);
     const char* type = core::pixel_type_name(core::pixel_type(l.image));
@@ -125,11 +151,12 @@ int main(int argc, char** argv)
     app.require_subcommand(1);
     app.fallthrough(); // --quiet may follow the subcommand (subcommands inherit this)
 
-    std::string info_path;
+    std::string info_path, series;
     bool json = false;
     auto* info_cmd = app.add_subcommand("info", "Print geometry, pixel type and intensity range of an image");
     info_cmd->add_option("PATH", info_path, "Image file or DICOM folder")->required();
     info_cmd->add_flag("--json", json, "Machine-readable output");
+    info_cmd->add_option("--series", series, "DICOM: the SeriesInstanceUID to read when a folder holds several");
 
     std::string in, out, type, name = "image";
     auto* convert_cmd = app.add_subcommand("convert", "Convert an image; the output format follows OUT's extension");
@@ -137,15 +164,16 @@ int main(int argc, char** argv)
     convert_cmd->add_option("OUT", out, "Output file (.mhd, .mha, .nii, .nii.gz, .h5)")->required();
     convert_cmd->add_option("--type", type, "Convert pixels to this type (rounding, saturating)")
         ->check(CLI::IsMember({"uint8", "int8", "int16", "uint16", "int32", "uint32", "float32", "float64"}));
+    convert_cmd->add_option("--series", series, "DICOM: the SeriesInstanceUID to read when a folder holds several");
     convert_cmd->add_option("--name", name, "Name of the image in an HDF5 output (/images/NAME)")->capture_default_str();
 
     tools::RunRecord record(app, argc, argv);
     return tools::run_tool(app, argc, argv, [&] {
         const tools::Progress progress("lio", quiet);
         if (*info_cmd)
-            return info(info_path, json);
+            return info(info_path, series, json, progress);
         auto& timings = record.timings;
-        const Loaded l = timings.time("read", [&] { return load(in); });
+        const Loaded l = timings.time("read", [&] { return load(in, series, progress); });
         progress.message("read " + in + " (" + io::format_name(l.format) + ")");
         const core::AnyImage converted = cast_to(l.image, type);
         if (io::image_format(out) != io::ImageFormat::Hdf5) {
