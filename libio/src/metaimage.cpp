@@ -410,6 +410,14 @@ std::string inflate_payload(std::string_view compressed, std::size_t expected, c
     return out;
 }
 
+// A vector holding `image`, moved in: `return {image}` would copy it (initializer lists are const).
+std::vector<core::AnyImage> one(core::AnyImage&& image)
+{
+    std::vector<core::AnyImage> v;
+    v.push_back(std::move(image));
+    return v;
+}
+
 template <class T>
 void swap_bytes(std::vector<T>& v)
 {
@@ -448,7 +456,7 @@ std::vector<core::AnyImage> decode_typed(const MetaImageHeader& h, std::string_v
         core::Image3D<T> img;
         static_cast<core::ImageGeometry&>(img) = h.geometry;
         img.data = std::move(values);
-        return {core::AnyImage(std::move(img))};
+        return one(core::AnyImage(std::move(img)));
     }
     return split_channels(h, values.data());
 }
@@ -478,7 +486,7 @@ std::vector<core::AnyImage> decode_ascii(const MetaImageHeader& h, std::string_v
         core::Image3D<T> img;
         static_cast<core::ImageGeometry&>(img) = h.geometry;
         img.data = std::move(values);
-        return {core::AnyImage(std::move(img))};
+        return one(core::AnyImage(std::move(img)));
     }
     return split_channels(h, values.data());
 }
@@ -568,34 +576,59 @@ std::string read_header_text(const std::filesystem::path& path)
     return text;
 }
 
+// Reads uncompressed single-channel binary data straight into the image: no intermediate
+// buffer, so reading costs little more than the file read itself (docs/benchmarks.md).
+core::AnyImage read_raw_direct(const MetaImageHeader& h, const std::filesystem::path& file, std::size_t begin)
+{
+    core::AnyImage image = core::make_image(h.pixel_type, h.geometry);
+    std::visit(
+        [&](auto& im) {
+            using T = typename std::decay_t<decltype(im)>::value_type;
+            std::ifstream in(file, std::ios::binary);
+            if (!in)
+                throw IoError(file.string() + ": cannot open for reading");
+            in.seekg(static_cast<std::streamoff>(begin));
+            const auto n = static_cast<std::streamsize>(im.data.size() * sizeof(T));
+            in.read(reinterpret_cast<char*>(im.data.data()), n);
+            if (in.gcount() != n)
+                throw IoError(file.string() + ": read " + std::to_string(in.gcount()) + " of " + std::to_string(n) +
+                              " bytes");
+            if (sizeof(T) > 1 && h.big_endian != host_is_big_endian())
+                swap_bytes(im.data);
+        },
+        image);
+    return image;
+}
+
 std::vector<core::AnyImage> read_all(const std::filesystem::path& path)
 {
     const std::string text = read_header_text(path);
     const MetaImageHeader h = parse_metaimage_header(text, path);
-    if (h.local) {
-        const std::size_t total = file_size_or_throw(path, "MetaImage file");
-        std::size_t begin = h.data_offset + static_cast<std::size_t>(std::max<std::int64_t>(h.header_size, 0));
-        if (begin > total)
-            throw IoError(path.string() + ": truncated: no data after the header");
-        std::size_t count = total - begin;
-        if (h.binary && !h.compressed) {
-            // Check sizes before reading a byte of data.
-            const std::size_t expected = payload_bytes(h);
-            if (count < expected)
-                throw IoError(path.string() + ": truncated: " + std::to_string(count) + " bytes of data, the header (" +
-                              describe(h) + ") needs " + std::to_string(expected));
-        }
-        return decode_payload(h, read_bytes(path, begin, count), path.string());
-    }
-    const std::size_t total = file_size_or_throw(h.data_file, "data file (ElementDataFile of " + path.string() + ")");
-    std::size_t begin = static_cast<std::size_t>(std::max<std::int64_t>(h.header_size, 0));
+    // Where the data lies: after the header (LOCAL) or in its own file, after HeaderSize bytes.
+    const std::filesystem::path& file = h.local ? path : h.data_file;
+    const std::size_t total = h.local ? file_size_or_throw(path, "MetaImage file")
+                                      : file_size_or_throw(h.data_file, "data file (ElementDataFile of " +
+                                                                            path.string() + ")");
+    const std::size_t begin = (h.local ? h.data_offset : 0) + static_cast<std::size_t>(std::max<std::int64_t>(h.header_size, 0));
     if (begin > total)
-        throw IoError(h.data_file.string() + ": truncated: smaller than HeaderSize");
+        throw IoError(file.string() + ": truncated: no data after the header (HeaderSize " +
+                      std::to_string(h.header_size) + ")");
     const std::size_t count = total - begin;
-    if (h.binary && !h.compressed && count < payload_bytes(h))
-        throw IoError(h.data_file.string() + ": truncated: " + std::to_string(count) + " bytes of data, the header " +
-                      path.filename().string() + " (" + describe(h) + ") needs " + std::to_string(payload_bytes(h)));
-    return decode_payload(h, read_bytes(h.data_file, begin, count), h.data_file.string());
+    if (h.binary && !h.compressed) {
+        // Sizes are checked before a byte of data is read or allocated.
+        const std::size_t expected = payload_bytes(h);
+        const std::string header_name = h.local ? "the header" : "the header " + path.filename().string();
+        if (count < expected)
+            throw IoError(file.string() + ": truncated: " + std::to_string(count) + " bytes of data, " + header_name +
+                          " (" + describe(h) + ") needs " + std::to_string(expected));
+        if (count > expected && h.header_size != -1)
+            throw InvalidInputError(file.string() + ": " + std::to_string(count) + " bytes of data, but " + header_name +
+                                    " (" + describe(h) + ") describes " + std::to_string(expected) +
+                                    ": the header and the data disagree");
+        if (h.channels == 1) // HeaderSize = -1: the data is the last `expected` bytes
+            return one(read_raw_direct(h, file, begin + count - expected));
+    }
+    return decode_payload(h, read_bytes(file, begin, count), file.string());
 }
 
 // --- writing -----------------------------------------------------------------------------------
@@ -639,24 +672,26 @@ std::string join_numbers(const double* v, int n)
     return s;
 }
 
-std::string payload_of(const core::AnyImage& image)
+// The image's bytes in little-endian order: a view of the pixels themselves on a little-endian
+// host (no copy of a 40 MiB CT), else a byte-swapped copy held in `swapped`.
+std::string_view payload_of(const core::AnyImage& image, std::string& swapped)
 {
     return std::visit(
-        [](const auto& im) {
+        [&swapped](const auto& im) {
             using T = typename std::decay_t<decltype(im)>::value_type;
-            std::string bytes(im.data.size() * sizeof(T), '\0');
-            std::memcpy(bytes.data(), im.data.data(), bytes.size());
-            if (sizeof(T) > 1 && host_is_big_endian()) {
-                for (std::size_t i = 0; i < bytes.size(); i += sizeof(T))
-                    std::reverse(bytes.begin() + static_cast<std::ptrdiff_t>(i),
-                                 bytes.begin() + static_cast<std::ptrdiff_t>(i + sizeof(T)));
-            }
-            return bytes;
+            const std::string_view bytes(reinterpret_cast<const char*>(im.data.data()), im.data.size() * sizeof(T));
+            if (sizeof(T) == 1 || !host_is_big_endian())
+                return bytes;
+            swapped.assign(bytes);
+            for (std::size_t i = 0; i < swapped.size(); i += sizeof(T))
+                std::reverse(swapped.begin() + static_cast<std::ptrdiff_t>(i),
+                             swapped.begin() + static_cast<std::ptrdiff_t>(i + sizeof(T)));
+            return std::string_view(swapped);
         },
         image);
 }
 
-std::string deflate_payload(const std::string& raw, int level, const std::string& where)
+std::string deflate_payload(std::string_view raw, int level, const std::string& where)
 {
     if (level < 1 || level > 9)
         throw InvalidInputError(where + ": compression_level must be 1..9, not " + std::to_string(level));
@@ -685,7 +720,7 @@ std::string deflate_payload(const std::string& raw, int level, const std::string
     return out;
 }
 
-void write_file(const std::filesystem::path& p, const std::string& a, const std::string& b = {})
+void write_file(const std::filesystem::path& p, std::string_view a, std::string_view b = {})
 {
     std::ofstream out(p, std::ios::binary | std::ios::trunc);
     if (!out)
@@ -751,9 +786,12 @@ void write_metaimage(const std::filesystem::path& path, const core::AnyImage& im
         throw InvalidInputError(path.string() + ": cannot write a 2-D MetaImage of an image with " +
                                 std::to_string(g.size[2]) + " slices");
 
-    std::string payload = payload_of(image);
-    if (params.compress)
-        payload = deflate_payload(payload, params.compression_level, path.string());
+    std::string swapped, compressed;
+    std::string_view payload = payload_of(image, swapped);
+    if (params.compress) {
+        compressed = deflate_payload(payload, params.compression_level, path.string());
+        payload = compressed;
+    }
 
     double dir[9];
     for (int r = 0; r < n; ++r) // axis r, component c (see the reader)

@@ -59,7 +59,8 @@ std::vector<core::AnyImage> decode_metaimage(std::string_view bytes, const std::
 
 struct MetaImageWriteParams {
     bool compress = false;  //!< zlib-compress the data (CompressedData = True)
-    int compression_level = 6; //!< zlib level 1 (fast) .. 9 (small)
+    int compression_level = 1; //!< zlib level 1 (fast) .. 9 (small); 1 writes CT 6x faster than 6
+                               //!< for files ~2% larger (docs/benchmarks.md)
     int ndims = 0;          //!< 2 or 3; 0 = 2 when the image is a single slice at z = 0 with a
                             //!< z-aligned third axis, else 3
 };
