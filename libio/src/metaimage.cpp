@@ -445,6 +445,18 @@ std::vector<core::AnyImage> split_channels(const MetaImageHeader& h, const T* va
     return out;
 }
 
+// The decoded values as one image, or one image per channel.
+template <class T>
+std::vector<core::AnyImage> to_images(const MetaImageHeader& h, std::vector<T>&& values)
+{
+    if (h.channels > 1)
+        return split_channels(h, values.data());
+    core::Image3D<T> img;
+    static_cast<core::ImageGeometry&>(img) = h.geometry;
+    img.data = std::move(values);
+    return one(core::AnyImage(std::move(img)));
+}
+
 template <class T>
 std::vector<core::AnyImage> decode_typed(const MetaImageHeader& h, std::string_view bytes)
 {
@@ -452,13 +464,7 @@ std::vector<core::AnyImage> decode_typed(const MetaImageHeader& h, std::string_v
     std::memcpy(values.data(), bytes.data(), values.size() * sizeof(T));
     if (sizeof(T) > 1 && h.big_endian != host_is_big_endian())
         swap_bytes(values);
-    if (h.channels == 1) {
-        core::Image3D<T> img;
-        static_cast<core::ImageGeometry&>(img) = h.geometry;
-        img.data = std::move(values);
-        return one(core::AnyImage(std::move(img)));
-    }
-    return split_channels(h, values.data());
+    return to_images(h, std::move(values));
 }
 
 template <class T>
@@ -482,13 +488,7 @@ std::vector<core::AnyImage> decode_ascii(const MetaImageHeader& h, std::string_v
         values.push_back(core::saturate_cast<T>(v));
         p = r.ptr;
     }
-    if (h.channels == 1) {
-        core::Image3D<T> img;
-        static_cast<core::ImageGeometry&>(img) = h.geometry;
-        img.data = std::move(values);
-        return one(core::AnyImage(std::move(img)));
-    }
-    return split_channels(h, values.data());
+    return to_images(h, std::move(values));
 }
 
 template <template <class> class F, class... Args>

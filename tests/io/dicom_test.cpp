@@ -4,6 +4,7 @@
 #include "lobe/io/dicom.h"
 #include "lobe/io/metaimage.h"
 
+#include "common/expect_error.h"
 #include "common/test_data.h"
 
 #include <gdcmDataElement.h>
@@ -27,6 +28,8 @@
 #include <iterator>
 #include <string>
 #include <vector>
+
+using lobe::test::expect_error;
 
 using namespace lobe;
 namespace fs = std::filesystem;
@@ -189,20 +192,6 @@ void write_bytes(const fs::path& p, const std::vector<char>& bytes, std::size_t 
     f.write(bytes.data(), static_cast<std::streamsize>(n));
 }
 
-// Runs `f`, expects an exception of type E whose message contains every one of `parts`.
-template <class E, class F> void expect_error(F&& f, std::initializer_list<std::string> parts)
-{
-    try {
-        f();
-        ADD_FAILURE() << "no exception";
-    } catch (const E& e) {
-        const std::string msg = e.what();
-        for (const auto& p : parts)
-            EXPECT_NE(msg.find(p), std::string::npos) << "'" << p << "' not in: " << msg;
-    } catch (const std::exception& e) {
-        ADD_FAILURE() << "wrong exception type: " << e.what();
-    }
-}
 
 template <class T> const core::Image3D<T>& as(const core::AnyImage& img)
 {

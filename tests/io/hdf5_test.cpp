@@ -3,6 +3,7 @@
 
 #include "lobe/io/hdf5.h"
 
+#include "common/expect_error.h"
 #include "common/test_data.h"
 
 #include <gtest/gtest.h>
@@ -18,6 +19,8 @@
 #include <string>
 #include <vector>
 
+using lobe::test::expect_error;
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -28,26 +31,6 @@ using namespace lobe::io;
 
 // ---- helpers ------------------------------------------------------------------------------------
 
-// Asserts that `f` throws exactly E and that its message contains every part.
-template <class E, class F>
-void expect_error(F&& f, std::initializer_list<std::string> parts)
-{
-    try {
-        f();
-        ADD_FAILURE() << "no exception thrown";
-    } catch (const E& e) {
-        const std::string msg = e.what();
-        for (const auto& p : parts)
-            EXPECT_NE(msg.find(p), std::string::npos) << "message: " << msg << "\nshould contain: " << p;
-    } catch (const std::exception& e) {
-        ADD_FAILURE() << "wrong exception type, message: " << e.what();
-    }
-}
-#define EXPECT_LOBE_ERROR(E, stmt, ...)                                                                    \
-    do {                                                                                               \
-        SCOPED_TRACE(#stmt);                                                                           \
-        expect_error<E>([&] { stmt; }, {__VA_ARGS__});                                                 \
-    } while (0)
 
 // A direction matrix rotated 30 degrees about (1, 2, 3): columns are unit and orthogonal but
 // every entry is non-trivial, so an axis swap or transposition would show.

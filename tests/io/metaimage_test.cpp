@@ -2,6 +2,7 @@
 // every kind of bad input the issue lists.
 #include "lobe/io/metaimage.h"
 
+#include "common/expect_error.h"
 #include "common/test_data.h"
 
 #include <gtest/gtest.h>
@@ -11,6 +12,8 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+
+using lobe::test::expect_error;
 
 using namespace lobe;
 namespace fs = std::filesystem;
@@ -63,21 +66,6 @@ std::string read_text(const fs::path& p)
     return ss.str();
 }
 
-// Asserts that `fn` throws exception type E with a message containing every fragment.
-template <class E, class F>
-void expect_error(F&& fn, std::initializer_list<std::string> fragments)
-{
-    try {
-        fn();
-        ADD_FAILURE() << "no exception thrown";
-    } catch (const E& e) {
-        const std::string msg = e.what();
-        for (const auto& f : fragments)
-            EXPECT_NE(msg.find(f), std::string::npos) << "message '" << msg << "' lacks '" << f << "'";
-    } catch (const std::exception& e) {
-        ADD_FAILURE() << "wrong exception type: " << e.what();
-    }
-}
 
 const std::string kSliverHeader = "ObjectType = Image\n"
                                   "NDims = 3\n"

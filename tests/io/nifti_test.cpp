@@ -6,6 +6,7 @@
 #include "lobe/io/nifti.h"
 #include "lobe/io/metaimage.h"
 
+#include "common/expect_error.h"
 #include "common/test_data.h"
 
 #include <gtest/gtest.h>
@@ -134,18 +135,7 @@ fs::path small_nii(const fs::path& dir, const std::string& name = "small.nii")
 template <class E>
 void expect_error(const std::function<void()>& f, const fs::path& path, const std::string& needle = {})
 {
-    try {
-        f();
-        ADD_FAILURE() << "no exception for " << path;
-    } catch (const E& e) {
-        const std::string msg = e.what();
-        EXPECT_NE(msg.find(path.string()), std::string::npos) << "message does not name the file: " << msg;
-        if (!needle.empty()) {
-            EXPECT_NE(msg.find(needle), std::string::npos) << "message lacks '" << needle << "': " << msg;
-        }
-    } catch (const std::exception& e) {
-        ADD_FAILURE() << "wrong exception type: " << e.what();
-    }
+    test::expect_error<E>(f, {path.string(), needle});
 }
 
 template <class T>

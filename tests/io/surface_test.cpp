@@ -3,6 +3,7 @@
 
 #include "lobe/io/surface.h"
 
+#include "common/expect_error.h"
 #include "common/test_data.h"
 
 #include <gtest/gtest.h>
@@ -16,6 +17,8 @@
 #include <string>
 #include <vector>
 
+using lobe::test::expect_error;
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -24,25 +27,6 @@ using lobe::core::IoError;
 using lobe::core::TriMesh;
 using lobe::core::Vec3;
 
-template <class E, class F>
-void expect_error(F&& f, std::initializer_list<std::string> parts)
-{
-    try {
-        f();
-        ADD_FAILURE() << "no exception thrown";
-    } catch (const E& e) {
-        const std::string msg = e.what();
-        for (const auto& p : parts)
-            EXPECT_NE(msg.find(p), std::string::npos) << "message: " << msg << "\nshould contain: " << p;
-    } catch (const std::exception& e) {
-        ADD_FAILURE() << "wrong exception type, message: " << e.what();
-    }
-}
-#define EXPECT_LOBE_ERROR(E, stmt, ...)                                                                    \
-    do {                                                                                               \
-        SCOPED_TRACE(#stmt);                                                                           \
-        expect_error<E>([&] { stmt; }, {__VA_ARGS__});                                                 \
-    } while (0)
 
 // An icosphere (icosahedron subdivided `levels` times), outward counter-clockwise triangles,
 // centred away from the origin so that a float32 round trip has something to round.
