@@ -14,9 +14,8 @@ echo "== 1. phantom: a synthetic abdominal CT with known ground truth" >&2
 "$bin/lphantom" "$out/phantom" --png "$out/pictures/phantom"
 "$bin/lio" info "$out/phantom/ct.mhd"
 
-echo "== 2. the pipeline container: CT and ground-truth labels in HDF5 (+ XDMF for ParaView)" >&2
-"$bin/lio" convert "$out/phantom/ct.mhd" "$out/phantom/ct.h5"
-"$bin/lio" convert "$out/phantom/ct.mhd" "$out/phantom/ct.nii.gz"
-"$bin/lio" info "$out/phantom/ct.h5"
+echo "== 2. the pipeline container phantom.h5 (CT, ground-truth labels, provenance; phantom.xdmf opens it in ParaView)" >&2
+"$bin/lio" info "$out/phantom/phantom.h5"
+"$bin/lio" convert "$out/phantom/ct.mhd" "$out/phantom/ct.nii.gz"   # for 3D Slicer, ITK-SNAP, ...
 
 echo "== done: results in $out/, pictures in $out/pictures/" >&2

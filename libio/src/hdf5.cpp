@@ -1209,6 +1209,19 @@ ImageInfo Hdf5Reader::image_info(const std::string& name) const
     return info;
 }
 
+ImageInfo Hdf5Reader::label_info(const std::string& name) const
+{
+    Group g = impl().item_group("labels", name, "label volume");
+    DatasetView v = open_dataset(g.get(), name, impl().at("/labels/" + name));
+    std::optional<core::PixelType> type;
+    ImageInfo info;
+    info.geometry = read_volume_geometry(v, type);
+    if (type != core::PixelType::UInt8)
+        throw InvalidInputError(v.where + " has type " + describe_type(v.type.get()) + ", expected uint8");
+    info.pixel_type = core::PixelType::UInt8;
+    return info;
+}
+
 core::AnyImage Hdf5Reader::read_image(const std::string& name) const
 {
     Group g = impl().item_group("images", name, "image");

@@ -1028,3 +1028,19 @@ TEST(Hdf5Container, SoftLinksAndExternalStorageAreRefused)
 }
 
 } // namespace
+
+TEST(Hdf5Container, LabelInfoGivesGeometryWithoutReading)
+{
+    const auto dir = lobe::test::scratch_dir();
+    const auto labels = sphere_labels(12);
+    {
+        Hdf5Writer w(dir / "l.h5");
+        w.write_labels("liver", labels, kTissues);
+        w.commit();
+    }
+    const Hdf5Reader r(dir / "l.h5");
+    const ImageInfo info = r.label_info("liver");
+    EXPECT_EQ(info.pixel_type, lobe::core::PixelType::UInt8);
+    EXPECT_TRUE(lobe::core::same_grid(info.geometry, labels, 1e-12)); // stored as float64: exact
+    EXPECT_LOBE_ERROR(InvalidInputError, r.label_info("kidney"), "kidney");
+}

@@ -205,3 +205,35 @@ TEST(Lio, ListsSeveralDicomSeriesAndReadsTheChosenOne)
     const auto mr = io::read_metaimage(dir / "mr.mha");
     EXPECT_EQ(core::geometry(mr).size, (std::array<int, 3>{64, 64, 1})); // MR_small is 64 x 64
 }
+
+TEST(Lio, InfoListsAContainerAndReadsTheChosenItem)
+{
+    const auto dir = test::scratch_dir();
+    const auto img = std::get<core::ImageI16>(io::read_metaimage(small_image(dir)));
+    core::LabelImage3D labels(img.geometry(), 1);
+    {
+        io::Hdf5Writer w(dir / "two.h5");
+        w.write_image("ct", img);
+        w.write_labels("liver", labels, {{0, "background"}, {1, "liver"}});
+        w.commit();
+    }
+    const std::string h5 = test::shell_quote((dir / "two.h5").string());
+    auto r = lio("info " + h5, dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("images:    ct  int16  4 x 3 x 2"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("labels:    liver  uint8  4 x 3 x 2"), std::string::npos) << r.out;
+    r = lio("info --json " + h5, dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["labels"][0]["name"], "liver");
+    EXPECT_EQ(j["images"][0]["spacing"][1].get<double>(), 0.75);
+
+    r = lio("info " + h5 + " --item liver", dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("range:     1 .. 1"), std::string::npos) << r.out;
+    // Without a choice, converting fails and names the items.
+    r = lio("convert " + h5 + " " + test::shell_quote((dir / "x.mha").string()), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("labels/liver"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "x.mha"));
+}

@@ -2,6 +2,7 @@
 // process (lobe_phantom) and through the lphantom program.
 #include "lphantom/phantom.h"
 
+#include "lobe/io/hdf5.h"
 #include "lobe/io/metaimage.h"
 
 #include "common/run_tool.h"
@@ -558,9 +559,9 @@ TEST(Phantom, ToolWritesImagesTruthAndPictures)
                                   test::shell_quote(png.string()),
                               dir);
     ASSERT_EQ(run.exit_code, 0) << run.err;
-    for (const char* f : {"ct.mhd", "ct.raw", "labels.mhd", "labels.raw", "truth.json"})
+    for (const char* f : {"ct.mhd", "ct.raw", "labels.mhd", "labels.raw", "truth.json", "phantom.h5", "phantom.xdmf"})
         EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
-    EXPECT_EQ(count_files(out), 5u) << "no temporary files left behind";
+    EXPECT_EQ(count_files(out), 7u) << "no temporary files left behind";
 
     // the files hold exactly what the library generates
     PhantomParams p = tiny_params();
@@ -574,6 +575,21 @@ TEST(Phantom, ToolWritesImagesTruthAndPictures)
     const auto labels = io::read_metaimage(out / "labels.mhd");
     ASSERT_EQ(core::pixel_type(labels), core::PixelType::UInt8);
     EXPECT_EQ(std::get<core::LabelImage3D>(labels).data, ref.labels.data);
+
+    // the container holds the same CT and labels, the label names, and this run's provenance
+    const io::Hdf5Reader h5(out / "phantom.h5");
+    EXPECT_EQ(std::get<core::ImageI16>(h5.read_image("ct")).data, ref.ct.data);
+    const io::LabelVolume truth = h5.read_labels("truth");
+    EXPECT_EQ(truth.image.data, ref.labels.data);
+    ASSERT_EQ(truth.table.size(), phantom::label_table().size());
+    EXPECT_EQ(truth.table[1].name, phantom::label_table()[1].name);
+    const auto history = h5.provenance();
+    ASSERT_EQ(history.size(), 1u);
+    EXPECT_EQ(history[0].tool, "lphantom");
+    bool has_seed = false;
+    for (const auto& [k, v] : history[0].parameters)
+        has_seed |= k == "seed" && v == "7";
+    EXPECT_TRUE(has_seed);
 
     std::ifstream jf(out / "truth.json");
     const auto j = nlohmann::json::parse(jf);

@@ -5,6 +5,7 @@
 #include "lphantom/phantom.h"
 #include "lphantom/truth_json.h"
 
+#include "lobe/io/hdf5.h"
 #include "lobe/io/metaimage.h"
 
 
@@ -102,6 +103,7 @@ int main(int argc, char** argv)
         ->check(CLI::NonNegativeNumber);
     tools::add_common_options(app, quiet);
 
+    tools::RunRecord record(app, argc, argv);
     return tools::run_tool(app, argc, argv, [&]() -> int {
         const tools::Progress progress("lphantom", quiet);
         if (spacing.size() == 2) {
@@ -146,7 +148,7 @@ int main(int argc, char** argv)
 
         progress.message("generating " + std::to_string(p.size[0]) + " x " + std::to_string(p.size[1]) + " x " +
                          std::to_string(p.size[2]) + " voxels");
-        tools::Timings timings;
+        tools::Timings& timings = record.timings;
         const phantom::PhantomResult r = timings.time("generate", [&] { return phantom::generate_phantom(p); });
         io::MetaImageWriteParams wp;
         wp.compress = compress;
@@ -159,12 +161,23 @@ int main(int argc, char** argv)
             timings.time("write pictures", [&] { write_pictures(png_dir, r, png_pixel_mm); });
         }
         tools::write_file_atomically(stage / "truth.json", phantom::truth_json(p, r, io::join_command_line(argc, argv), timings).dump(2) + "\n");
+        // The pipeline's first container: CT, ground-truth labels with their names, provenance.
+        timings.time("write container", [&] {
+            io::Hdf5Writer h5(stage / "phantom.h5");
+            h5.write_image("ct", r.ct);
+            io::LabelTable table;
+            for (const auto& l : phantom::label_table())
+                table.push_back({l.label, l.name});
+            h5.write_labels("truth", r.labels, table);
+            h5.write_provenance(record.provenance());
+            h5.commit();
+        });
         for (const auto& e : fs::directory_iterator(stage))
             tools::move_file(e.path(), out_dir / e.path().filename());
         cleanup.done = true;
         std::ostringstream msg;
         msg << std::fixed << std::setprecision(1) << "wrote " << (out_dir / "ct.mhd").string()
-            << ", labels.mhd, truth.json; liver " << r.truth.liver_volume_ml << " mL; generated in "
+            << ", labels.mhd, truth.json, phantom.h5; liver " << r.truth.liver_volume_ml << " mL; generated in "
             << timings.entries().front().second << " s";
         progress.message(msg.str());
         return tools::kExitOk;

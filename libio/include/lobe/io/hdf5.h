@@ -180,6 +180,8 @@ public:
 
     //! Pixel type and geometry of /images/<name>, without reading the pixels.
     ImageInfo image_info(const std::string& name) const;
+    //! Geometry of /labels/<name> (pixel type uint8), without reading the labels.
+    ImageInfo label_info(const std::string& name) const;
 
     core::AnyImage read_image(const std::string& name) const;
     LabelVolume read_labels(const std::string& name) const;
