@@ -1,11 +1,10 @@
 #pragma once
 // Runs a tool as a child process and captures its exit code, stdout and stderr.
 
-#include <array>
-#include <cstdio>
+#include "common/test_data.h"
+
+#include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <sys/wait.h>
 
@@ -38,14 +37,8 @@ inline ToolRun run_tool(const std::string& exe, const std::string& args, const s
     const int status = std::system(cmd.c_str());
     ToolRun r;
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    auto slurp = [](const std::filesystem::path& p) {
-        std::ifstream f(p);
-        std::stringstream ss;
-        ss << f.rdbuf();
-        return ss.str();
-    };
-    r.out = slurp(out);
-    r.err = slurp(err);
+    r.out = read_file(out);
+    r.err = read_file(err);
     return r;
 }
 

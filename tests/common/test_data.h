@@ -3,9 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
+#include <vector>
 
 namespace lobe::test {
 
@@ -38,6 +42,25 @@ inline std::filesystem::path scratch_dir()
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     return dir;
+}
+
+//! The whole content of a file ("" if it cannot be read).
+inline std::string read_file(const std::filesystem::path& p)
+{
+    std::ifstream f(p, std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+}
+
+//! The names in a folder, sorted.
+inline std::vector<std::string> list_dir(const std::filesystem::path& dir)
+{
+    std::vector<std::string> v;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+        v.push_back(e.path().filename().string());
+    std::sort(v.begin(), v.end());
+    return v;
 }
 
 } // namespace lobe::test

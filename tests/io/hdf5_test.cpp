@@ -163,22 +163,7 @@ void expect_same(const Provenance& a, const Provenance& b)
     EXPECT_EQ(a.timings, b.timings); // float64 attributes: exact
 }
 
-std::vector<std::string> dir_entries(const fs::path& dir)
-{
-    std::vector<std::string> v;
-    for (const auto& e : fs::directory_iterator(dir))
-        v.push_back(e.path().filename().string());
-    std::sort(v.begin(), v.end());
-    return v;
-}
 
-std::string slurp(const fs::path& p)
-{
-    std::ifstream f(p, std::ios::binary);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
 
 // Minimal RAII for fabricating files with HDF5's C API.
 struct H5Id {
@@ -378,7 +363,7 @@ TEST(Hdf5Container, EmptyMeshesRoundTrip)
     Hdf5Reader r(p);
     EXPECT_TRUE(r.read_surface("nothing").triangles.empty());
     EXPECT_TRUE(r.read_tet_mesh("nothing").mesh.tets.empty());
-    EXPECT_EQ(slurp(fs::path(p).replace_extension(".xdmf")).find("nothing"), std::string::npos);
+    EXPECT_EQ(lobe::test::read_file(fs::path(p).replace_extension(".xdmf")).find("nothing"), std::string::npos);
 }
 
 TEST(Hdf5Container, ProvenanceKeepsParametersAndTimingsInOrder)
@@ -570,7 +555,7 @@ TEST(Hdf5Container, XdmfSidecarIsWellFormedAndReferencesExistingDatasets)
     write_full(p);
     const fs::path x = dir / "stage.xdmf";
     ASSERT_TRUE(fs::exists(x));
-    const std::string xml = slurp(x);
+    const std::string xml = lobe::test::read_file(x);
 
     if (fs::exists("/usr/bin/xmllint")) {
         const std::string cmd = "/usr/bin/xmllint --noout '" + x.string() + "' 2>&1";
@@ -641,7 +626,7 @@ TEST(Hdf5Container, XdmfSidecarCanBeSwitchedOff)
     Hdf5Writer w(dir / "a.h5", params);
     w.write_surface("s", octahedron());
     w.commit();
-    EXPECT_EQ(dir_entries(dir), std::vector<std::string>{"a.h5"});
+    EXPECT_EQ(lobe::test::list_dir(dir), std::vector<std::string>{"a.h5"});
 }
 
 // ---- atomicity ----------------------------------------------------------------------------------------
@@ -652,9 +637,9 @@ TEST(Hdf5Container, WriterDestroyedWithoutCommitLeavesNothing)
     {
         Hdf5Writer w(dir / "half.h5");
         w.write_image("ct", pattern_image<float>(oblique_geometry(10, 10, 10)));
-        EXPECT_EQ(dir_entries(dir).size(), 1u); // the temporary exists while writing ...
+        EXPECT_EQ(lobe::test::list_dir(dir).size(), 1u); // the temporary exists while writing ...
     }
-    EXPECT_TRUE(dir_entries(dir).empty()); // ... and is gone, with no .h5 and no .xdmf
+    EXPECT_TRUE(lobe::test::list_dir(dir).empty()); // ... and is gone, with no .h5 and no .xdmf
 }
 
 TEST(Hdf5Container, ExistingFileIsUntouchedUntilCommit)
@@ -664,28 +649,28 @@ TEST(Hdf5Container, ExistingFileIsUntouchedUntilCommit)
     const auto old_image = pattern_image<std::int16_t>(oblique_geometry(4, 5, 6));
     const auto new_image = pattern_image<float>(oblique_geometry(6, 5, 4));
     write_hdf5_image(p, old_image, "ct");
-    const std::string old_bytes = slurp(p), old_xdmf = slurp(dir / "stage.xdmf");
+    const std::string old_bytes = lobe::test::read_file(p), old_xdmf = lobe::test::read_file(dir / "stage.xdmf");
     {
         Hdf5Writer w(p);
         w.write_image("ct", new_image);
-        EXPECT_EQ(slurp(p), old_bytes);
+        EXPECT_EQ(lobe::test::read_file(p), old_bytes);
         EXPECT_TRUE(same_bytes(read_hdf5_image(p), old_image));
         w.commit();
         EXPECT_LOBE_ERROR(InvalidInputError, w.write_surface("s", octahedron()), p.string(), "already committed");
         EXPECT_LOBE_ERROR(InvalidInputError, w.commit(), "already committed");
     }
     EXPECT_TRUE(same_bytes(read_hdf5_image(p), new_image));
-    EXPECT_NE(slurp(dir / "stage.xdmf"), old_xdmf);
-    EXPECT_EQ(dir_entries(dir), (std::vector<std::string>{"stage.h5", "stage.xdmf"}));
+    EXPECT_NE(lobe::test::read_file(dir / "stage.xdmf"), old_xdmf);
+    EXPECT_EQ(lobe::test::list_dir(dir), (std::vector<std::string>{"stage.h5", "stage.xdmf"}));
 
     // A writer that is abandoned leaves the committed pair exactly as it was.
-    const std::string committed = slurp(p);
+    const std::string committed = lobe::test::read_file(p);
     {
         Hdf5Writer w(p);
         w.write_image("ct", old_image);
     }
-    EXPECT_EQ(slurp(p), committed);
-    EXPECT_EQ(dir_entries(dir), (std::vector<std::string>{"stage.h5", "stage.xdmf"}));
+    EXPECT_EQ(lobe::test::read_file(p), committed);
+    EXPECT_EQ(lobe::test::list_dir(dir), (std::vector<std::string>{"stage.h5", "stage.xdmf"}));
 }
 
 // ---- writer refusals ------------------------------------------------------------------------------
@@ -698,7 +683,7 @@ TEST(Hdf5Container, WriterRefusesBadArgumentsBeforeWriting)
     EXPECT_LOBE_ERROR(InvalidInputError, Hdf5Writer(p, Hdf5WriteParams{12, true, true}), file, "gzip_level 12");
     EXPECT_LOBE_ERROR(InvalidInputError, Hdf5Writer(dir / "w.xdmf"), "w.xdmf", "sidecar");
     EXPECT_LOBE_ERROR(IoError, Hdf5Writer(dir / "no" / "w.h5"), "does not exist");
-    EXPECT_TRUE(dir_entries(dir).empty());
+    EXPECT_TRUE(lobe::test::list_dir(dir).empty());
 
     Hdf5Writer w(p);
     const auto im = pattern_image<std::uint8_t>(oblique_geometry(3, 3, 3));

@@ -3,6 +3,7 @@
 #include "lobe/io/metaimage.h"
 
 #include "common/expect_error.h"
+#include "common/synthetic.h"
 #include "common/test_data.h"
 
 #include <gtest/gtest.h>
@@ -14,6 +15,7 @@
 #include <sstream>
 
 using lobe::test::expect_error;
+using lobe::test::random_image;
 
 using namespace lobe;
 namespace fs = std::filesystem;
@@ -33,24 +35,6 @@ core::ImageGeometry oblique_geometry(std::array<int, 3> size)
     return g;
 }
 
-template <class T>
-core::Image3D<T> random_image(const core::ImageGeometry& g, unsigned seed)
-{
-    core::Image3D<T> img(g);
-    std::mt19937 rng(seed);
-    for (auto& v : img.data) {
-        if constexpr (std::is_floating_point_v<T>) {
-            v = static_cast<T>(std::uniform_real_distribution<double>(-1e3, 1e3)(rng));
-        } else {
-            // Cover the full range including both extremes, where byte-order bugs show.
-            v = static_cast<T>(std::uniform_int_distribution<long long>(std::numeric_limits<T>::lowest(),
-                                                                        std::numeric_limits<T>::max())(rng));
-        }
-    }
-    img.data.front() = std::numeric_limits<T>::lowest();
-    img.data.back() = std::numeric_limits<T>::max();
-    return img;
-}
 
 void write_text(const fs::path& p, const std::string& s)
 {
@@ -58,13 +42,6 @@ void write_text(const fs::path& p, const std::string& s)
     f << s;
 }
 
-std::string read_text(const fs::path& p)
-{
-    std::ifstream f(p, std::ios::binary);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    return ss.str();
-}
 
 
 const std::string kSliverHeader = "ObjectType = Image\n"
@@ -147,7 +124,7 @@ TEST(MetaImage, WritesTwoDimensionalImagesAsNDims2)
     io::write_metaimage(dir / "slice.mha", img);
     const auto hdr = io::read_metaimage_header(dir / "slice.mha");
     EXPECT_EQ(hdr.ndims, 2);
-    EXPECT_NE(read_text(dir / "slice.mha").find("DimSize = 4 3\n"), std::string::npos);
+    EXPECT_NE(test::read_file(dir / "slice.mha").find("DimSize = 4 3\n"), std::string::npos);
     const auto back = std::get<core::Image3D<std::uint8_t>>(io::read_metaimage(dir / "slice.mha"));
     EXPECT_EQ(back.data, img.data);
     EXPECT_EQ(back.origin, g.origin);
@@ -204,7 +181,7 @@ TEST(MetaImage, DecodesFromMemory)
     io::MetaImageWriteParams p;
     p.compress = true;
     io::write_metaimage(dir / "m.mha", img, p);
-    const auto images = io::decode_metaimage(read_text(dir / "m.mha"), "memory.mha");
+    const auto images = io::decode_metaimage(test::read_file(dir / "m.mha"), "memory.mha");
     ASSERT_EQ(images.size(), 1u);
     EXPECT_EQ(std::get<core::Image3D<std::uint16_t>>(images[0]).data, img.data);
 }
@@ -378,7 +355,7 @@ TEST(MetaImage, RejectsCorruptCompressedData)
     io::MetaImageWriteParams p;
     p.compress = true;
     io::write_metaimage(dir / "c.mha", img, p);
-    const std::string good = read_text(dir / "c.mha");
+    const std::string good = test::read_file(dir / "c.mha");
     const auto hdr = io::read_metaimage_header(dir / "c.mha");
 
     // Flipped bytes in the middle of the deflate stream.
@@ -416,19 +393,15 @@ TEST(MetaImage, FailedWritesLeaveNothingBehind)
 
     // An invalid image does not replace an existing good file.
     io::write_metaimage(dir / "keep.mhd", img);
-    const std::string before = read_text(dir / "keep.mhd");
+    const std::string before = test::read_file(dir / "keep.mhd");
     auto broken = img;
     broken.spacing[1] = -1.0;
     expect_error<core::InvalidInputError>([&] { io::write_metaimage(dir / "keep.mhd", broken); }, {"keep.mhd", "spacing"});
-    EXPECT_EQ(read_text(dir / "keep.mhd"), before);
+    EXPECT_EQ(test::read_file(dir / "keep.mhd"), before);
     broken = img;
     broken.data.pop_back();
     EXPECT_THROW(io::write_metaimage(dir / "keep.mhd", broken), core::InvalidInputError);
     EXPECT_THROW(io::write_metaimage(dir / "x.png", img), core::InvalidInputError);
 
-    std::vector<std::string> names;
-    for (const auto& e : fs::directory_iterator(dir))
-        names.push_back(e.path().filename().string());
-    std::sort(names.begin(), names.end());
-    EXPECT_EQ(names, (std::vector<std::string>{"keep.mhd", "keep.raw"}));
+    EXPECT_EQ(test::list_dir(dir), (std::vector<std::string>{"keep.mhd", "keep.raw"}));
 }

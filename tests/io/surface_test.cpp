@@ -85,22 +85,7 @@ double signed_volume(const TriMesh& m)
     return vol / 6;
 }
 
-std::vector<std::string> dir_entries(const fs::path& dir)
-{
-    std::vector<std::string> v;
-    for (const auto& e : fs::directory_iterator(dir))
-        v.push_back(e.path().filename().string());
-    std::sort(v.begin(), v.end());
-    return v;
-}
 
-std::string slurp(const fs::path& p)
-{
-    std::ifstream f(p, std::ios::binary);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
 
 void check_round_trip(const std::string& file_name, const std::vector<std::string>& expected_files)
 {
@@ -111,7 +96,7 @@ void check_round_trip(const std::string& file_name, const std::vector<std::strin
     ASSERT_GT(volume, 0) << "the test sphere must be outward oriented";
 
     lobe::io::write_surface(p, mesh);
-    EXPECT_EQ(dir_entries(dir), expected_files) << "nothing but the file (and its sidecar) is left";
+    EXPECT_EQ(lobe::test::list_dir(dir), expected_files) << "nothing but the file (and its sidecar) is left";
     const TriMesh back = lobe::io::read_surface(p);
 
     ASSERT_EQ(back.triangles.size(), mesh.triangles.size());
@@ -149,7 +134,7 @@ TEST(SurfaceIo, GltfNamesItsBufferByTheFinalFileName)
 {
     const fs::path dir = lobe::test::scratch_dir();
     lobe::io::write_surface(dir / "liver.gltf", test_sphere());
-    const std::string json = slurp(dir / "liver.gltf");
+    const std::string json = lobe::test::read_file(dir / "liver.gltf");
     // The buffer was written in a temporary folder under the final name, so the URI is relative
     // and final: moving the pair elsewhere keeps it readable.
     EXPECT_NE(json.find("\"liver.bin\""), std::string::npos) << json.substr(0, 2000);
@@ -164,7 +149,7 @@ TEST(SurfaceIo, OverwritesAtomically)
     lobe::io::write_surface(p, icosphere(0, 1.0, {}));
     lobe::io::write_surface(p, test_sphere());
     EXPECT_EQ(lobe::io::read_surface(p).triangles.size(), 320u); // 20 * 4^2
-    EXPECT_EQ(dir_entries(dir), std::vector<std::string>{"s.ply"});
+    EXPECT_EQ(lobe::test::list_dir(dir), std::vector<std::string>{"s.ply"});
 }
 
 TEST(SurfaceIo, RefusesUnknownExtensionBeforeWriting)
@@ -173,7 +158,7 @@ TEST(SurfaceIo, RefusesUnknownExtensionBeforeWriting)
     EXPECT_LOBE_ERROR(InvalidInputError, lobe::io::write_surface(dir / "s.vtk", test_sphere()),
                       (dir / "s.vtk").string(), "unknown surface format '.vtk'", ".stl, .obj, .ply, .gltf or .glb");
     EXPECT_LOBE_ERROR(InvalidInputError, lobe::io::write_surface(dir / "noext", test_sphere()), "unknown surface format ''");
-    EXPECT_TRUE(dir_entries(dir).empty());
+    EXPECT_TRUE(lobe::test::list_dir(dir).empty());
 }
 
 TEST(SurfaceIo, RefusesMalformedMeshBeforeWriting)
@@ -190,7 +175,7 @@ TEST(SurfaceIo, RefusesMalformedMeshBeforeWriting)
     bad.vertices[3].z = std::nan("");
     EXPECT_LOBE_ERROR(InvalidInputError, lobe::io::write_surface(dir / "s.obj", bad), "vertex 3 has a non-finite coordinate");
     EXPECT_LOBE_ERROR(InvalidInputError, lobe::io::write_surface(dir / "s.ply", TriMesh{}), "has no triangles");
-    EXPECT_TRUE(dir_entries(dir).empty());
+    EXPECT_TRUE(lobe::test::list_dir(dir).empty());
     EXPECT_LOBE_ERROR(IoError, lobe::io::write_surface(dir / "missing" / "s.stl", test_sphere()), "does not exist");
 }
 
