@@ -33,11 +33,12 @@ inline std::filesystem::path pydicom_data_dir()
     return "/usr/lib/python3/dist-packages/pydicom/data/test_files";
 }
 
-//! A fresh, empty folder for one test's outputs (removed and re-created on each call).
+//! A fresh, empty folder for one test's outputs (removed and re-created on each call), inside
+//! the build tree: two clones tested on one machine never share it, and it goes with the build.
 inline std::filesystem::path scratch_dir()
 {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::filesystem::path dir = std::filesystem::temp_directory_path() / "lobe-tests" /
+    std::filesystem::path dir = std::filesystem::path(LOBE_BINARY_DIR) / "test-scratch" /
                                 (std::string(info->test_suite_name()) + "." + info->name());
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
