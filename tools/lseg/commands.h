@@ -1,0 +1,19 @@
+#pragma once
+// lseg's subcommands. Each file adds its subcommand to the app and returns how to run it;
+// main.cpp runs the one the user chose.
+
+#include "common/cli.h"
+
+#include <functional>
+
+namespace lobe::lseg {
+
+struct Command {
+    CLI::App* app = nullptr; //!< the subcommand
+    std::function<int(const tools::Progress&, tools::RunRecord&)> run;
+};
+
+Command add_eval(CLI::App& lseg); //!< lseg eval SEG REF: Dice, the SLIVER07 measures and score
+Command add_snake(CLI::App& lseg); //!< lseg snake IMAGE: CDSG / GGVF / GAC active contours
+
+} // namespace lobe::lseg
