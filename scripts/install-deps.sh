@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs the Debian packages lobe needs to build, test and run its demo.
 # Idempotent: when every package is already installed it does nothing (no apt-get update).
+# With --bench it also installs what the benchmarks need: ITK (the outside peer the segmentation
+# benchmarks compare against; never a library dependency) and matplotlib for the charts.
 set -euo pipefail
 
 packages=(
@@ -11,6 +13,10 @@ packages=(
   # real files the tests read: ITK's example MetaImages and pydicom's DICOM test files
   insighttoolkit5-examples python3-pydicom
 )
+
+if [ "${1:-}" = "--bench" ]; then
+  packages+=(libinsighttoolkit5-dev python3-matplotlib python3-numpy)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
