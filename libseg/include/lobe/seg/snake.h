@@ -1,0 +1,81 @@
+#pragma once
+//! \file
+//! \brief Active-contour segmentation under one API: the CDSG snake (thesis §4.10, eq. 4.29) and
+//! its two baselines, the GGVF geometric snake (eq. 4.14 with |∇φ|) and the geodesic active
+//! contour (Caselles et al. 1997, eq. 4.11) without GVF. The snake starts inside the object
+//! (thesis L3170) and expands. Works on a 2-D slice (size[2] == 1) or a 3-D volume.
+
+#include "lobe/core/image3d.h"
+#include "lobe/seg/dsg.h"
+#include "lobe/seg/edge_map.h"
+#include "lobe/seg/gvf.h"
+#include "lobe/seg/level_set.h"
+
+namespace lobe::seg {
+
+enum class SnakeMethod {
+    Cdsg, //!< chessboard-distance pressure outside δ1 + band-limited DSG/GGVF inside δ1
+    Ggvf, //!< GGVF over the whole image, normalised, advecting the contour (+ curvature)
+    Gac,  //!< geodesic active contour: g (κ + v0) |∇φ| + ∇g·∇φ
+};
+
+//! Energy competition (thesis §4.6) needs a template (normally the previous slice's contour).
+enum class CompetitionMode {
+    Off,  //!< G = 1 always
+    On,   //!< G = 0.3 from the start
+    Auto, //!< the thesis's rule: run with G = 1; if the result leaves the AOI, repeat once with G = 0.3
+};
+
+//! How the chessboard distance drives the CDSG contour outside δ1 (spec §4.11, both readings).
+enum class PressureMode {
+    Scalar, //!< a normal speed: constant outward pressure outside δ1, handed over to the field inside
+    Vector, //!< -∇D_Ch joined to the DSG field into one advection field
+};
+
+struct CdsgParams {
+    int edge_band = 2;              //!< δ1: voxels within this chessboard distance of an edge get the DSG/GGVF field
+    BinaryEdgeParams edges;         //!< binary edge map feeding the chessboard distance
+    PressureMode pressure_mode = PressureMode::Scalar;
+    double pressure = 1.0;          //!< pressure speed outside δ1 [mm per unit time]
+    bool directional_sharpening = true; //!< use DSG when a template is given (else plain GGVF in δ1)
+    DsgParams dsg;
+};
+
+//! Inputs of `segment_snake`. Defaults are the ones docs/segmentation.md justifies.
+struct SnakeParams {
+    SnakeMethod method = SnakeMethod::Cdsg;
+    EdgeMapParams edge;             //!< windowing, smoothing, stopping function g
+    GvfParams gvf;                  //!< GGVF for the Ggvf baseline (full image) and CDSG (inside δ1, fewer iterations)
+    int band_gvf_iterations = 40;   //!< GGVF iterations inside δ1 for CDSG
+    CdsgParams cdsg;
+    double curvature_weight = 0.05; //!< ε: curvature term weight [mm^2 per unit time] (spacing 1 mm)
+    double gac_pressure = 1.0;      //!< v0 of the geodesic active contour
+    double gac_stopping_k = 0.005;  //!< k of the GAC stopping function (sharper than the CDSG default)
+    LevelSetParams level_set;
+    CompetitionMode competition = CompetitionMode::Auto;
+    double aoi_width_mm = 6.0;      //!< AOI: voxels within this distance of the template's boundary
+    double aoi_leave_fraction = 0.05; //!< Auto: repeat when more than this fraction of the result's
+                                    //!< boundary lies outside the AOI
+};
+
+//! What `segment_snake` returns.
+struct SnakeResult {
+    core::LabelImage3D mask;    //!< 1 inside the final contour
+    core::ImageF phi;           //!< the final level set
+    int iterations = 0;         //!< level-set iterations (of the last run when competition repeated)
+    bool converged = false;
+    bool competition_used = false; //!< true if G = 0.3 was in force for the returned result
+    int runs = 1;               //!< 1, or 2 when the Auto rule repeated the segmentation
+    double field_seconds = 0.0; //!< edge map, distances and vector fields
+    double evolve_seconds = 0.0; //!< level-set evolution
+};
+
+//! Segments `image` (raw intensities, e.g. HU; windowed by params.edge.window) starting from the
+//! contour of `init` (non-zero = inside). `templ` (may be null) is the expected shape, normally
+//! the previous slice's result: it defines the AOI for energy competition and the preferred edge
+//! directions for DSG. \throw InvalidInputError on grid mismatch, an empty or full `init`, or
+//! non-finite image values.
+SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& init, const SnakeParams& params = {},
+                          const core::LabelImage3D* templ = nullptr);
+
+} // namespace lobe::seg
