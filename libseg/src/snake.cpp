@@ -1,0 +1,324 @@
+// The three snakes share the level-set core; they differ only in the speed terms they build
+// from the image (docs/segmentation.md explains every choice).
+#include "lobe/seg/snake.h"
+
+#include "lobe/core/errors.h"
+#include "lobe/seg/distance_transform.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace lobe::seg {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0)
+{
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+//! The field v (index units, as GVF returns it) turned into a unit physical direction per voxel,
+//! scaled by `speed`. A field in index units differentiates along voxels, so its physical
+//! direction divides each component by the spacing. Small vectors are not blown up to full
+//! speed: |v| is normalised with a floor eps = `floor_fraction` * max |v|, so flat regions of
+//! the field (the centre of an even-width fissure) stay slow instead of turning noisy.
+VectorField normalised_speed_field(const VectorField& v, double speed, double floor_fraction,
+                                   const core::LabelImage3D* only = nullptr)
+{
+    const core::ImageGeometry& g = v.geometry();
+    VectorField out(g);
+    const std::size_t n = g.voxel_count();
+    const double inv_h[3] = {1.0 / g.spacing[0], 1.0 / g.spacing[1], 1.0 / g.spacing[2]};
+    double max_norm = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        double s = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            const double c = double(v.c[a].data[i]) * inv_h[a];
+            s += c * c;
+        }
+        max_norm = std::max(max_norm, s);
+    }
+    max_norm = std::sqrt(max_norm);
+    if (!(max_norm > 0.0))
+        return out;
+    const double eps = floor_fraction * max_norm;
+#pragma omp parallel for schedule(static)
+    for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(n); ++ii) {
+        const auto i = static_cast<std::size_t>(ii);
+        if (only && !only->data[i])
+            continue;
+        double c[3];
+        double s = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            c[a] = double(v.c[a].data[i]) * inv_h[a];
+            s += c[a] * c[a];
+        }
+        const double scale = speed / (std::sqrt(s) + eps);
+        for (int a = 0; a < 3; ++a)
+            out.c[a].data[i] = static_cast<float>(c[a] * scale);
+    }
+    return out;
+}
+
+//! Unit normals of a mask's boundary (gradient of its signed distance), zero where the distance
+//! exceeds `width_mm`: the preferred edge directions DSG boosts.
+VectorField template_directions(const core::ImageF& template_sdf, double width_mm)
+{
+    const VectorField grad = gradient(template_sdf);
+    VectorField out(template_sdf.geometry());
+    const std::size_t n = template_sdf.voxel_count();
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!(std::abs(double(template_sdf.data[i])) <= width_mm))
+            continue;
+        double s = 0.0;
+        for (int a = 0; a < 3; ++a)
+            s += double(grad.c[a].data[i]) * double(grad.c[a].data[i]);
+        s = std::sqrt(s);
+        if (s > 1e-6)
+            for (int a = 0; a < 3; ++a)
+                out.c[a].data[i] = static_cast<float>(double(grad.c[a].data[i]) / s);
+    }
+    return out;
+}
+
+//! Boundary voxels of a mask (inside, with a face neighbour outside; in-plane for 2-D).
+template <class F>
+void for_each_boundary_voxel(const core::LabelImage3D& m, F&& f)
+{
+    const auto& s = m.size;
+    const bool is3d = s[2] > 1;
+    for (int k = 0; k < s[2]; ++k)
+        for (int j = 0; j < s[1]; ++j)
+            for (int i = 0; i < s[0]; ++i) {
+                if (!m.at(i, j, k))
+                    continue;
+                const bool border = (i == 0 || !m.at(i - 1, j, k)) || (i + 1 == s[0] || !m.at(i + 1, j, k)) ||
+                                    (j == 0 || !m.at(i, j - 1, k)) || (j + 1 == s[1] || !m.at(i, j + 1, k)) ||
+                                    (is3d && ((k == 0 || !m.at(i, j, k - 1)) || (k + 1 == s[2] || !m.at(i, j, k + 1))));
+                if (border)
+                    f(m.index(i, j, k));
+            }
+}
+
+//! Everything one run needs besides the competition weight.
+struct Context {
+    const SnakeParams& params;
+    const core::ImageF& phi0;
+    EdgeMapResult edges;
+    std::optional<core::ImageF> template_sdf;
+    core::LabelImage3D aoi;          //!< empty without a template
+    VectorField directions;          //!< DSG preferred normals (empty without a template)
+};
+
+struct Terms {
+    core::ImageF stopping;
+    core::ImageF pressure;
+    VectorField advection;
+    bool has_stopping = false, has_pressure = false, has_advection = false;
+};
+
+Terms cdsg_terms(const Context& ctx, const core::ImageF& f)
+{
+    const SnakeParams& p = ctx.params;
+    Terms t;
+    // Chessboard distance to the binary edges: pressure outside δ1, GVF inside (the hand-over).
+    const core::LabelImage3D bin = binary_edges(f, p.cdsg.edges);
+    const core::Image3D<std::int32_t> dch = chessboard_distance(bin);
+    core::LabelImage3D band(f.geometry(), 0);
+    bool any_band = false;
+    for (std::size_t i = 0; i < band.data.size(); ++i)
+        if (dch.data[i] >= 0 && dch.data[i] <= p.cdsg.edge_band) {
+            band.data[i] = 1;
+            any_band = true;
+        }
+
+    // External field inside δ1: band-limited GGVF of the (directionally sharpened) edge map.
+    VectorField field(f.geometry());
+    if (any_band) {
+        const bool dsg = p.cdsg.directional_sharpening && !ctx.directions.empty();
+        const core::ImageF sharpened = dsg ? dsg_edge_map(f, ctx.directions, p.cdsg.dsg) : core::ImageF();
+        GvfParams gp = p.gvf;
+        gp.iterations = std::max(1, p.band_gvf_iterations);
+        const GvfResult gvf = gradient_vector_flow(dsg ? sharpened : f, band, gp);
+        field = normalised_speed_field(gvf.field, p.cdsg.pressure, 0.05, &band);
+    }
+
+    if (p.cdsg.pressure_mode == PressureMode::Scalar) {
+        t.pressure = core::ImageF(f.geometry(), 0.f);
+        for (std::size_t i = 0; i < band.data.size(); ++i)
+            if (!band.data[i])
+                t.pressure.data[i] = static_cast<float>(p.cdsg.pressure);
+        t.has_pressure = true;
+    } else {
+        // -∇D_Ch points to the nearest edge; joined with the GVF field into one advection field.
+        core::ImageF d(f.geometry(), 0.f);
+        for (std::size_t i = 0; i < d.data.size(); ++i)
+            d.data[i] = dch.data[i] < 0 ? 0.f : static_cast<float>(dch.data[i]);
+        // gradient() is per mm; normalised_speed_field expects index units (times the spacing).
+        VectorField gd = gradient(d);
+        for (int a = 0; a < 3; ++a)
+            for (auto& v : gd.c[a].data)
+                v = static_cast<float>(-double(v) * f.spacing[a]);
+        const VectorField outside = normalised_speed_field(gd, p.cdsg.pressure, 0.05);
+        for (std::size_t i = 0; i < band.data.size(); ++i)
+            if (!band.data[i])
+                for (int a = 0; a < 3; ++a)
+                    field.c[a].data[i] = outside.c[a].data[i];
+    }
+    t.advection = std::move(field);
+    t.has_advection = true;
+    t.stopping = ctx.edges.stopping;
+    t.has_stopping = true;
+    return t;
+}
+
+Terms ggvf_terms(const Context& ctx, const core::ImageF& f)
+{
+    Terms t;
+    const GvfResult gvf = gradient_vector_flow(f, ctx.params.gvf);
+    t.advection = normalised_speed_field(gvf.field, ctx.params.cdsg.pressure, 0.05);
+    t.has_advection = true;
+    return t;
+}
+
+Terms gac_terms(const Context& ctx, const core::ImageF& f)
+{
+    const SnakeParams& p = ctx.params;
+    Terms t;
+    // g from the (possibly competition-weighted) edge strength, with the GAC's own sharper k:
+    // f is |∇I| / scale, so |∇I| = f * scale.
+    const double k = p.gac_stopping_k;
+    t.stopping = core::ImageF(f.geometry(), 1.f);
+    for (std::size_t i = 0; i < f.data.size(); ++i) {
+        const double gm = double(f.data[i]) * ctx.edges.scale / k;
+        t.stopping.data[i] = static_cast<float>(1.0 / (1.0 + gm * gm));
+    }
+    t.has_stopping = true;
+    t.pressure = t.stopping;
+    for (auto& v : t.pressure.data)
+        v = static_cast<float>(double(v) * p.gac_pressure);
+    t.has_pressure = true;
+    // Pull-back -(∇g·N)N: the front moves down the gradient of g, towards the edge.
+    VectorField gg = gradient(t.stopping);
+    double max_norm = 0.0;
+    for (std::size_t i = 0; i < f.data.size(); ++i) {
+        double s = 0.0;
+        for (int a = 0; a < 3; ++a)
+            s += double(gg.c[a].data[i]) * double(gg.c[a].data[i]);
+        max_norm = std::max(max_norm, s);
+    }
+    max_norm = std::sqrt(max_norm);
+    const double scale = max_norm > 0 ? p.gac_pressure / max_norm : 0.0;
+    for (int a = 0; a < 3; ++a)
+        for (auto& v : gg.c[a].data)
+            v = static_cast<float>(-double(v) * scale);
+    t.advection = std::move(gg);
+    t.has_advection = true;
+    return t;
+}
+
+struct Run {
+    LevelSetResult ls;
+    double field_seconds = 0.0;
+    double evolve_seconds = 0.0;
+};
+
+Run run_once(const Context& ctx, float weight)
+{
+    const SnakeParams& p = ctx.params;
+    const auto t0 = Clock::now();
+    const core::ImageF f = (weight < 1.f && !ctx.aoi.data.empty())
+                               ? energy_competition(ctx.edges.edge, ctx.aoi, weight)
+                               : ctx.edges.edge;
+    Terms t;
+    switch (p.method) {
+    case SnakeMethod::Cdsg: t = cdsg_terms(ctx, f); break;
+    case SnakeMethod::Ggvf: t = ggvf_terms(ctx, f); break;
+    case SnakeMethod::Gac: t = gac_terms(ctx, f); break;
+    }
+    Run r;
+    r.field_seconds = seconds_since(t0);
+
+    SpeedTerms terms;
+    terms.curvature_weight = p.curvature_weight;
+    terms.stopping = t.has_stopping ? &t.stopping : nullptr;
+    terms.pressure = t.has_pressure ? &t.pressure : nullptr;
+    terms.advection = t.has_advection ? &t.advection : nullptr;
+    const auto t1 = Clock::now();
+    r.ls = evolve_level_set(ctx.phi0, terms, p.level_set);
+    r.evolve_seconds = seconds_since(t1);
+    return r;
+}
+
+//! Fraction of the result's boundary voxels that lie outside the AOI (the Auto rule's test).
+double fraction_outside(const core::LabelImage3D& mask, const core::LabelImage3D& aoi)
+{
+    std::size_t total = 0, outside = 0;
+    for_each_boundary_voxel(mask, [&](std::size_t i) {
+        ++total;
+        if (!aoi.data[i])
+            ++outside;
+    });
+    return total ? double(outside) / double(total) : 1.0;
+}
+
+} // namespace
+
+SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& init, const SnakeParams& params,
+                          const core::LabelImage3D* templ)
+{
+    if (image.data.empty() || image.voxel_count() != image.data.size())
+        throw core::InvalidInputError("segment_snake: the image is empty or its data does not match its size");
+    if (!core::same_grid(image, init))
+        throw core::InvalidInputError("segment_snake: the initial mask is not on the image's grid");
+    if (templ && !core::same_grid(image, *templ))
+        throw core::InvalidInputError("segment_snake: the template mask is not on the image's grid");
+    if (params.aoi_width_mm <= 0 || !std::isfinite(params.aoi_width_mm))
+        throw core::InvalidInputError("segment_snake: aoi_width_mm must be positive");
+
+    const auto t0 = Clock::now();
+    const core::ImageF phi0 = initial_level_set(init); // throws for an empty or full mask
+    EdgeMapResult edges = edge_map(image, params.edge); // throws for non-finite values
+    Context ctx{params, phi0, std::move(edges), std::nullopt, {}, {}};
+
+    const bool competition_possible = templ != nullptr && params.competition != CompetitionMode::Off;
+    if (templ) {
+        ctx.template_sdf = initial_level_set(*templ);
+        ctx.aoi = core::LabelImage3D(image.geometry(), 0);
+        for (std::size_t i = 0; i < ctx.aoi.data.size(); ++i)
+            ctx.aoi.data[i] = std::abs(double(ctx.template_sdf->data[i])) <= params.aoi_width_mm ? 1 : 0;
+        if (params.method == SnakeMethod::Cdsg && params.cdsg.directional_sharpening)
+            ctx.directions = template_directions(*ctx.template_sdf, params.aoi_width_mm);
+    }
+    const double setup_seconds = seconds_since(t0);
+
+    const bool start_on = competition_possible && params.competition == CompetitionMode::On;
+    Run run = run_once(ctx, start_on ? kCompetitionOn : 1.f);
+    SnakeResult out;
+    out.competition_used = start_on;
+    out.runs = 1;
+    out.field_seconds = setup_seconds + run.field_seconds;
+    out.evolve_seconds = run.evolve_seconds;
+    if (competition_possible && params.competition == CompetitionMode::Auto &&
+        fraction_outside(run.ls.mask, ctx.aoi) > params.aoi_leave_fraction) {
+        // The one-repeat rule (thesis L3285-3295): the contour left the AOI, so the edges there
+        // were too weak to hold it; weight the edges outside the AOI down and segment once more.
+        run = run_once(ctx, kCompetitionOn);
+        out.competition_used = true;
+        out.runs = 2;
+        out.field_seconds += run.field_seconds;
+        out.evolve_seconds += run.evolve_seconds;
+    }
+    out.mask = std::move(run.ls.mask);
+    out.phi = std::move(run.ls.phi);
+    out.iterations = run.ls.iterations;
+    out.converged = run.ls.converged;
+    return out;
+}
+
+} // namespace lobe::seg
