@@ -98,3 +98,28 @@ TEST(Image3D, SameGridComparesWithinTolerance)
     b.direction[1] = -b.direction[1];
     EXPECT_FALSE(same_grid(a, b));
 }
+
+TEST(Image3D, AxialSliceKeepsItsPlaceInSpace)
+{
+    ImageGeometry g;
+    g.size = {3, 2, 4};
+    g.spacing = {0.5, 0.7, 2.5};
+    g.origin = {10, 20, 30};
+    g.direction = {1, 0, 0, 0, 0, -1, 0, 1, 0}; // axis k along +y, axis j along -z
+    Image3D<int> img(g);
+    for (std::size_t i = 0; i < img.data.size(); ++i)
+        img.data[i] = static_cast<int>(i);
+    const auto s = axial_slice(img, 2);
+    EXPECT_EQ(s.size, (std::array<int, 3>{3, 2, 1}));
+    // Voxel (i, j, 0) of the slice is voxel (i, j, 2) of the volume, at the same position.
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 3; ++i) {
+            EXPECT_EQ(s.at(i, j, 0), img.at(i, j, 2));
+            const auto a = s.index_to_physical(i, j, 0), b = img.index_to_physical(i, j, 2);
+            EXPECT_NEAR(a.x, b.x, 1e-12);
+            EXPECT_NEAR(a.y, b.y, 1e-12);
+            EXPECT_NEAR(a.z, b.z, 1e-12);
+        }
+    EXPECT_THROW(axial_slice(img, 4), InvalidInputError);
+    EXPECT_THROW(axial_slice(img, -1), InvalidInputError);
+}

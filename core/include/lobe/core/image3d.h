@@ -11,6 +11,7 @@
 #include "lobe/core/errors.h"
 #include "lobe/core/types.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -150,6 +151,26 @@ struct Image3D : ImageGeometry {
     T& at(int i, int j, int k) { return data[index(i, j, k)]; }
     const T& at(int i, int j, int k) const { return data[index(i, j, k)]; }
 };
+
+//! Axial slice k of `image` as a 2-D image (size[2] == 1) that keeps its place in space: the
+//! origin moves to the slice, spacing and direction stay. \throw InvalidInputError if k is
+//! outside the image.
+template <class T>
+Image3D<T> axial_slice(const Image3D<T>& image, int k)
+{
+    if (k < 0 || k >= image.size[2])
+        throw InvalidInputError("slice " + std::to_string(k) + " is outside the image (0.." +
+                                std::to_string(image.size[2] - 1) + ")");
+    ImageGeometry g = image.geometry();
+    const Vec3 o = g.index_to_physical(0, 0, k);
+    g.origin = {o.x, o.y, o.z};
+    g.size[2] = 1;
+    Image3D<T> out(g);
+    const std::size_t n = static_cast<std::size_t>(g.size[0]) * static_cast<std::size_t>(g.size[1]);
+    std::copy(image.data.begin() + static_cast<std::ptrdiff_t>(n * static_cast<std::size_t>(k)),
+              image.data.begin() + static_cast<std::ptrdiff_t>(n * (static_cast<std::size_t>(k) + 1)), out.data.begin());
+    return out;
+}
 
 using ImageF = Image3D<float>;
 using ImageI16 = Image3D<std::int16_t>;
