@@ -232,9 +232,15 @@ Run run_once(const Context& ctx, float weight)
 {
     const SnakeParams& p = ctx.params;
     const auto t0 = Clock::now();
-    const core::ImageF f = (weight < 1.f && !ctx.aoi.data.empty())
-                               ? energy_competition(ctx.edges.edge, ctx.aoi, weight)
-                               : ctx.edges.edge;
+    core::ImageF f = ctx.edges.edge;
+    if (weight < 1.f && !ctx.aoi.data.empty()) {
+        // G only sets the ratio between edges inside and outside the AOI. Dividing by G keeps
+        // the edges outside at their strength (so the binary-edge thresholds keep their
+        // meaning there) and lifts the weak edges inside the AOI above them: the competition.
+        f = energy_competition(ctx.edges.edge, ctx.aoi, weight);
+        for (auto& v : f.data)
+            v = std::min(1.f, v / weight);
+    }
     Terms t;
     switch (p.method) {
     case SnakeMethod::Cdsg: t = cdsg_terms(ctx, f); break;
