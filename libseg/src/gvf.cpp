@@ -1,1 +1,337 @@
-// placeholder: replaced by the gvf work
+#include "lobe/seg/gvf.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace lobe::seg {
+namespace {
+
+using Index = std::ptrdiff_t;
+
+//! Per-voxel coefficients of the explicit step, time step folded in:
+//!     v <- v + a·Σ_nb (v_nb - v) - r·v + c,   a = Δt·h, r = Δt·p, c = Δt·p·∇f.
+//! Stored as arrays of floats so that each iteration only streams them (no exp per step).
+struct Coefficients {
+    std::vector<float> a, r;
+    std::array<std::vector<float>, 3> c;
+    std::array<std::vector<float>, 3> grad; // ∇f, the initial field
+    double time_step = 0.0;
+};
+
+void check_params(const core::ImageF& edge, const GvfParams& p, const char* fn)
+{
+    const std::string what = std::string(fn) + ": edge map";
+    core::validate_geometry(edge, what);
+    if (edge.data.size() != edge.voxel_count())
+        throw core::InvalidInputError(what + ": holds " + std::to_string(edge.data.size()) + " values for " +
+                                      std::to_string(edge.voxel_count()) + " voxels");
+    if (p.model == GvfModel::Gvf && !(p.mu >= 0.0 && std::isfinite(p.mu)))
+        throw core::InvalidInputError(std::string(fn) + ": mu must be finite and >= 0, got " + std::to_string(p.mu));
+    if (p.model == GvfModel::Ggvf && !(p.k > 0.0 && std::isfinite(p.k)))
+        throw core::InvalidInputError(std::string(fn) + ": k must be finite and > 0, got " + std::to_string(p.k));
+    if (!(p.time_step > 0.0 && std::isfinite(p.time_step)))
+        throw core::InvalidInputError(std::string(fn) + ": time_step must be finite and > 0, got " +
+                                      std::to_string(p.time_step));
+    if (p.iterations < 0)
+        throw core::InvalidInputError(std::string(fn) + ": iterations must be >= 0, got " +
+                                      std::to_string(p.iterations));
+    if (!(p.tolerance >= 0.0 && std::isfinite(p.tolerance)))
+        throw core::InvalidInputError(std::string(fn) + ": tolerance must be finite and >= 0");
+    for (float v : edge.data)
+        if (!std::isfinite(v))
+            throw core::InvalidInputError(what + " has non-finite values (NaN or infinity)");
+}
+
+int iteration_count(const core::ImageGeometry& g, const GvfParams& p)
+{
+    // The thesis's minimum: a third of the longest in-plane row, rounded up (512 -> 171).
+    return p.iterations > 0 ? p.iterations : (std::max(g.size[0], g.size[1]) + 2) / 3;
+}
+
+//! ∇f in index units at voxel (i, j, k): central differences, one-sided on the border (as
+//! `gradient`, but per voxel so that the band-limited flow touches only its band).
+std::array<float, 3> grad_at(const core::ImageF& f, int i, int j, int k)
+{
+    std::array<float, 3> g{0.f, 0.f, 0.f};
+    const int pos[3] = {i, j, k};
+    const Index stride[3] = {1, f.size[0], Index(f.size[0]) * f.size[1]};
+    const float* c = f.data.data() + f.index(i, j, k);
+    for (int a = 0; a < 3; ++a) {
+        const int n = f.size[static_cast<std::size_t>(a)];
+        if (n == 1)
+            continue;
+        const int p = pos[a];
+        const float lo = p > 0 ? c[-stride[a]] : c[0];
+        const float hi = p < n - 1 ? c[stride[a]] : c[0];
+        g[static_cast<std::size_t>(a)] = (hi - lo) * ((p > 0 && p < n - 1) ? 0.5f : 1.f);
+    }
+    return g;
+}
+
+//! Coefficients at the listed voxels (`at(m)` gives the m-th voxel's (i, j, k)), time step
+//! reduced to the bound below which every step is a convex combination of v, its neighbours
+//! and ∇f: 1 - Δt·(2·dim·h + p) >= 0. Then |v| per component never exceeds max(|v0|, |∇f|), for
+//! GVF too, where the header's 1/(2·dim·max h) alone would let p = |∇f|^2 overshoot at edges.
+template <class At>
+Coefficients make_coefficients(const core::ImageF& f, const GvfParams& p, int dim, std::size_t count, At at)
+{
+    Coefficients co;
+    co.a.resize(count);
+    co.r.resize(count);
+    for (auto& v : co.c)
+        v.resize(count);
+    for (auto& v : co.grad)
+        v.resize(count);
+    const double inv_k2 = p.model == GvfModel::Ggvf ? 1.0 / (p.k * p.k) : 0.0;
+    double worst = 0.0;
+    const Index n = static_cast<Index>(count);
+#pragma omp parallel for schedule(static) reduction(max : worst)
+    for (Index m = 0; m < n; ++m) {
+        const auto u = static_cast<std::size_t>(m);
+        const std::array<int, 3> ijk = at(u);
+        const std::array<float, 3> g = grad_at(f, ijk[0], ijk[1], ijk[2]);
+        const double gx = g[0], gy = g[1], gz = g[2];
+        const double g2 = gx * gx + gy * gy + gz * gz;
+        double h, q;
+        if (p.model == GvfModel::Ggvf) {
+            h = std::exp(-g2 * inv_k2);
+            q = 1.0 - h;
+        } else {
+            h = p.mu;
+            q = g2;
+        }
+        co.a[u] = static_cast<float>(h);
+        co.r[u] = static_cast<float>(q);
+        for (std::size_t a = 0; a < 3; ++a)
+            co.grad[a][u] = g[a];
+        worst = std::max(worst, 2.0 * dim * h + q);
+    }
+    // 0.999: the float coefficients must not round past the bound.
+    const double bound = worst > 0.0 ? 0.999 / worst : p.time_step;
+    co.time_step = std::min(p.time_step, bound);
+    const auto dt = static_cast<float>(co.time_step);
+#pragma omp parallel for schedule(static)
+    for (Index m = 0; m < n; ++m) {
+        const auto u = static_cast<std::size_t>(m);
+        co.a[u] *= dt;
+        co.r[u] *= dt;
+        for (std::size_t a = 0; a < 3; ++a)
+            co.c[a][u] = co.r[u] * co.grad[a][u];
+    }
+    return co;
+}
+
+//! One explicit step over the whole grid, NC components (2 in 2-D, 3 in 3-D). The mirrored
+//! border is the half-sample one (ghost = centre): a missing neighbour adds (v - v) = 0, the
+//! zero-flux rule of the band-limited flow, so a full band reproduces this exactly.
+//! Returns max |Δv|^2.
+template <int NC>
+double step_full(const core::ImageGeometry& g, const Coefficients& co, const std::array<std::vector<float>, 3>& cur,
+                 std::array<std::vector<float>, 3>& next)
+{
+    const Index nx = g.size[0], ny = g.size[1], nz = g.size[2];
+    const Index sy = nx, sz = nx * ny;
+    const Index rows = ny * nz;
+    double worst = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : worst)
+    for (Index row = 0; row < rows; ++row) {
+        const Index j = row % ny, k = row / ny;
+        const Index base = row * nx;
+        // Offsets of the y and z neighbours; 0 on the border row (ghost = centre).
+        const Index oym = j > 0 ? -sy : 0, oyp = j < ny - 1 ? sy : 0;
+        const Index ozm = k > 0 ? -sz : 0, ozp = k < nz - 1 ? sz : 0;
+        const float* __restrict a = co.a.data() + base;
+        const float* __restrict r = co.r.data() + base;
+        const float* v[NC];
+        const float* c[NC];
+        float* out[NC];
+        for (int comp = 0; comp < NC; ++comp) {
+            const auto cc = static_cast<std::size_t>(comp);
+            v[comp] = cur[cc].data() + base;
+            c[comp] = co.c[cc].data() + base;
+            out[comp] = next[cc].data() + base;
+        }
+        auto update = [&](Index i, Index im, Index ip) {
+            float d2 = 0.f;
+            for (int comp = 0; comp < NC; ++comp) {
+                const float* w = v[comp];
+                const float x = w[i];
+                float lap = (w[im] - x) + (w[ip] - x) + (w[i + oym] - x) + (w[i + oyp] - x);
+                if (NC == 3)
+                    lap += (w[i + ozm] - x) + (w[i + ozp] - x);
+                const float y = x + a[i] * lap - r[i] * x + c[comp][i];
+                out[comp][i] = y;
+                d2 += (y - x) * (y - x);
+            }
+            return d2;
+        };
+        float m;
+        if (nx == 1) {
+            m = update(0, 0, 0);
+        } else {
+            // Border voxels apart, so the interior loop has no branch.
+            m = std::max(update(0, 0, 1), update(nx - 1, nx - 2, nx - 1));
+            for (Index i = 1; i < nx - 1; ++i)
+                m = std::max(m, update(i, i - 1, i + 1));
+        }
+        worst = std::max(worst, double(m));
+    }
+    return worst;
+}
+
+//! One explicit step on the band's compact arrays; nb[d][m] is the compact index of voxel m's
+//! neighbour in direction d, or m itself when that neighbour is outside the band or the image.
+template <int NC>
+double step_band(const Coefficients& co, const std::array<std::vector<std::uint32_t>, 6>& nb,
+                 const std::array<std::vector<float>, 3>& cur, std::array<std::vector<float>, 3>& next)
+{
+    const Index n = static_cast<Index>(co.a.size());
+    double worst = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : worst)
+    for (Index m = 0; m < n; ++m) {
+        const auto u = static_cast<std::size_t>(m);
+        float d2 = 0.f;
+        for (int comp = 0; comp < NC; ++comp) {
+            const auto cc = static_cast<std::size_t>(comp);
+            const float* v = cur[cc].data();
+            const float x = v[u];
+            // Same operation order as step_full, so a band that covers the image matches it.
+            float lap = (v[nb[0][u]] - x) + (v[nb[1][u]] - x) + (v[nb[2][u]] - x) + (v[nb[3][u]] - x);
+            if (NC == 3)
+                lap += (v[nb[4][u]] - x) + (v[nb[5][u]] - x);
+            const float y = x + co.a[u] * lap - co.r[u] * x + co.c[cc][u];
+            next[cc][u] = y;
+            d2 += (y - x) * (y - x);
+        }
+        worst = std::max(worst, double(d2));
+    }
+    return worst;
+}
+
+//! Runs the iterations with ping-pong buffers; `step(cur, next)` returns max |Δv|^2.
+template <class Step>
+void iterate(int iterations, double tolerance, std::array<std::vector<float>, 3>& v, GvfResult& res, Step step)
+{
+    std::array<std::vector<float>, 3> next = v;
+    for (int it = 0; it < iterations; ++it) {
+        const double change = std::sqrt(step(v, next));
+        std::swap(v, next);
+        res.iterations = it + 1;
+        res.last_change = change;
+        if (tolerance > 0.0 && change < tolerance)
+            break;
+    }
+}
+
+} // namespace
+
+GvfResult gradient_vector_flow(const core::ImageF& edge, const GvfParams& params)
+{
+    check_params(edge, params, "gradient_vector_flow");
+    const int nx = edge.size[0], ny = edge.size[1], nz = edge.size[2];
+    const int dim = nz > 1 ? 3 : 2;
+    const std::size_t n = edge.voxel_count();
+    const Coefficients co = make_coefficients(edge, params, dim, n, [&](std::size_t m) {
+        const auto i = static_cast<int>(m % static_cast<std::size_t>(nx));
+        const auto j = static_cast<int>((m / static_cast<std::size_t>(nx)) % static_cast<std::size_t>(ny));
+        const auto k = static_cast<int>(m / (static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny)));
+        return std::array<int, 3>{i, j, k};
+    });
+
+    GvfResult res;
+    std::array<std::vector<float>, 3> v = co.grad;
+    if (dim == 2)
+        v[2].assign(n, 0.f); // a 2-D field keeps z zero
+    const int iterations = iteration_count(edge, params);
+    if (dim == 3)
+        iterate(iterations, params.tolerance, v, res,
+                [&](const auto& cur, auto& next) { return step_full<3>(edge, co, cur, next); });
+    else
+        iterate(iterations, params.tolerance, v, res,
+                [&](const auto& cur, auto& next) { return step_full<2>(edge, co, cur, next); });
+
+    res.field = VectorField(edge.geometry());
+    for (std::size_t a = 0; a < 3; ++a)
+        res.field.c[a].data = std::move(v[a]);
+    return res;
+}
+
+GvfResult gradient_vector_flow(const core::ImageF& edge, const core::LabelImage3D& band, const GvfParams& params)
+{
+    check_params(edge, params, "gradient_vector_flow (band)");
+    core::validate_geometry(band, "gradient_vector_flow: band");
+    if (!core::same_grid(edge, band) || band.data.size() != edge.data.size())
+        throw core::InvalidInputError("gradient_vector_flow: the band and the edge map are on different grids");
+    const int nx = edge.size[0], ny = edge.size[1], nz = edge.size[2];
+    const int dim = nz > 1 ? 3 : 2;
+
+    // Compact band: voxel list in scan order (cache-friendly) and, per voxel, its compact index.
+    std::vector<std::size_t> voxels;
+    for (std::size_t q = 0; q < band.data.size(); ++q)
+        if (band.data[q] != 0)
+            voxels.push_back(q);
+    if (voxels.size() >= std::numeric_limits<std::uint32_t>::max())
+        throw core::InvalidInputError("gradient_vector_flow: the band has more than 2^32 - 1 voxels");
+    const std::size_t count = voxels.size();
+    auto ijk_of = [&](std::size_t q) {
+        const auto i = static_cast<int>(q % static_cast<std::size_t>(nx));
+        const auto j = static_cast<int>((q / static_cast<std::size_t>(nx)) % static_cast<std::size_t>(ny));
+        const auto k = static_cast<int>(q / (static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny)));
+        return std::array<int, 3>{i, j, k};
+    };
+
+    // Neighbour table, built with a binary search in the sorted voxel list rather than a
+    // full-image index map, so that memory too scales with the band.
+    std::array<std::vector<std::uint32_t>, 6> nb;
+    for (auto& t : nb)
+        t.resize(count);
+    const Index stride[3] = {1, nx, Index(nx) * ny};
+    const Index cn = static_cast<Index>(count);
+#pragma omp parallel for schedule(static)
+    for (Index m = 0; m < cn; ++m) {
+        const auto u = static_cast<std::size_t>(m);
+        const std::array<int, 3> p = ijk_of(voxels[u]);
+        for (int a = 0; a < 3; ++a)
+            for (int s = 0; s < 2; ++s) {
+                std::uint32_t self = static_cast<std::uint32_t>(m);
+                auto& slot = nb[static_cast<std::size_t>(2 * a + s)][u];
+                slot = self;
+                const int q = p[static_cast<std::size_t>(a)] + (s ? 1 : -1);
+                if (q < 0 || q >= edge.size[static_cast<std::size_t>(a)])
+                    continue;
+                const auto target = static_cast<std::size_t>(static_cast<Index>(voxels[u]) + (s ? 1 : -1) * stride[a]);
+                if (band.data[target] == 0)
+                    continue;
+                const auto it = std::lower_bound(voxels.begin(), voxels.end(), target);
+                slot = static_cast<std::uint32_t>(it - voxels.begin());
+            }
+    }
+
+    const Coefficients co =
+        make_coefficients(edge, params, dim, count, [&](std::size_t m) { return ijk_of(voxels[m]); });
+    GvfResult res;
+    std::array<std::vector<float>, 3> v = co.grad;
+    if (dim == 2)
+        v[2].assign(count, 0.f);
+    const int iterations = iteration_count(edge, params);
+    if (dim == 3)
+        iterate(iterations, params.tolerance, v, res,
+                [&](const auto& cur, auto& next) { return step_band<3>(co, nb, cur, next); });
+    else
+        iterate(iterations, params.tolerance, v, res,
+                [&](const auto& cur, auto& next) { return step_band<2>(co, nb, cur, next); });
+
+    res.field = VectorField(edge.geometry());
+    for (std::size_t a = 0; a < 3; ++a)
+        for (std::size_t m = 0; m < count; ++m)
+            res.field.c[a].data[voxels[m]] = v[a][m];
+    return res;
+}
+
+} // namespace lobe::seg
