@@ -21,11 +21,13 @@ void check_image(const core::LabelImage3D& img, const char* what)
                                       " values for " + std::to_string(img.voxel_count()) + " voxels");
 }
 
+// Threads only pay off on images this large: each parallel region costs a barrier, and on a
+// busy machine a barrier can wait for a whole time slice (the snake calls these on small images).
+constexpr std::size_t kParallelVoxels = std::size_t(1) << 16;
+
 // Per-thread buffers for one line; sized once for the longest line so that the line loops
 // never allocate.
 struct LineScratch {
-    std::vector<float> line;           // the gathered line
-    std::vector<std::uint8_t> mask;    // the mask along the line (signed distance)
     std::vector<float> site_in, site_out; // parabola heights (inf = no parabola)
     std::vector<float> env_in, env_out;   // envelopes at the voxel centres
     std::vector<int> v;                   // parabolas on the envelope
@@ -34,8 +36,6 @@ struct LineScratch {
     explicit LineScratch(int n)
     {
         const auto m = static_cast<std::size_t>(2 * n + 2); // half-voxel lattice plus the two grid faces
-        line.resize(static_cast<std::size_t>(n));
-        mask.resize(static_cast<std::size_t>(n));
         site_in.resize(m);
         site_out.resize(m);
         env_in.resize(static_cast<std::size_t>(n));
@@ -106,8 +106,7 @@ struct Lines {
         count = g.voxel_count() / static_cast<std::size_t>(length);
         stride = a == 0 ? 1 : a == 1 ? nx : nxy;
     }
-    // Consecutive L are neighbouring lines along x (for y and z), so a thread's chunk of lines
-    // reuses the cache lines its previous line brought in.
+    // For y and z, L = i + nx * (the other index): consecutive L are neighbours along x.
     std::size_t first(std::size_t L) const
     {
         if (axis == 0)
@@ -118,6 +117,47 @@ struct Lines {
     }
 };
 
+// Lines along y or z gathered this many at a time: neighbours along x share cache lines, so a
+// block turns each strided read into one cache line used 16 times instead of once.
+constexpr std::size_t kBlock = 16;
+
+// Runs work(line, mask_line) on every line along y or z (axis > 0), in place, in parallel;
+// make_worker() gives each thread its own worker (and scratch). `mask` may be null.
+template <class MakeWorker>
+void for_each_line(const Lines& lines, float* d2, const std::uint8_t* mask, MakeWorker make_worker)
+{
+    const auto n = static_cast<std::size_t>(lines.length);
+    const std::size_t nx = lines.nx, per_row = (nx + kBlock - 1) / kBlock;
+    const auto groups = static_cast<long long>(lines.count / nx * per_row);
+#pragma omp parallel if (lines.count * n >= kParallelVoxels)
+    {
+        auto work = make_worker();
+        std::vector<float> buf(n * kBlock);
+        std::vector<std::uint8_t> mbuf(mask ? n * kBlock : 0);
+#pragma omp for schedule(static)
+        for (long long G = 0; G < groups; ++G) {
+            const auto g = static_cast<std::size_t>(G);
+            const std::size_t i0 = g % per_row * kBlock, nb = std::min(kBlock, nx - i0);
+            const std::size_t first = lines.first(g / per_row * nx + i0);
+            for (std::size_t t = 0; t < n; ++t) {
+                const std::size_t at = first + t * lines.stride;
+                for (std::size_t l = 0; l < nb; ++l)
+                    buf[l * n + t] = d2[at + l];
+                if (mask)
+                    for (std::size_t l = 0; l < nb; ++l)
+                        mbuf[l * n + t] = mask[at + l];
+            }
+            for (std::size_t l = 0; l < nb; ++l)
+                work(buf.data() + l * n, mask ? mbuf.data() + l * n : nullptr);
+            for (std::size_t t = 0; t < n; ++t) {
+                const std::size_t at = first + t * lines.stride;
+                for (std::size_t l = 0; l < nb; ++l)
+                    d2[at + l] = buf[l * n + t];
+            }
+        }
+    }
+}
+
 // Squared distance [mm^2] along x to the nearest feature voxel centre of each row.
 void row_pass_centres(const core::LabelImage3D& features, float* d2)
 {
@@ -125,7 +165,7 @@ void row_pass_centres(const core::LabelImage3D& features, float* d2)
     const int n = lines.length;
     const double h2 = features.spacing[0] * features.spacing[0];
     const auto count = static_cast<long long>(lines.count);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (lines.count * std::size_t(n) >= kParallelVoxels)
     for (long long L = 0; L < count; ++L) {
         const std::size_t b = lines.first(static_cast<std::size_t>(L));
         const std::uint8_t* f = features.data.data() + b;
@@ -154,25 +194,12 @@ void line_pass_centres(const core::ImageGeometry& g, int axis, float* d2)
     const Lines lines(g, axis);
     const int n = lines.length;
     const double w = g.spacing[axis] * g.spacing[axis];
-    const auto count = static_cast<long long>(lines.count);
-#pragma omp parallel
-    {
-        LineScratch s(n);
-#pragma omp for schedule(static)
-        for (long long L = 0; L < count; ++L) {
-            const std::size_t b = lines.first(static_cast<std::size_t>(L));
-            bool any = false;
-            for (int t = 0; t < n; ++t) {
-                s.line[static_cast<std::size_t>(t)] = d2[b + static_cast<std::size_t>(t) * lines.stride];
-                any = any || s.line[static_cast<std::size_t>(t)] != kInf;
-            }
-            if (!any)
-                continue;
-            lower_envelope(s.line.data(), n, w, 0, 1, n, s.env_in.data(), s.v.data(), s.z.data());
-            for (int t = 0; t < n; ++t)
-                d2[b + static_cast<std::size_t>(t) * lines.stride] = s.env_in[static_cast<std::size_t>(t)];
-        }
-    }
+    for_each_line(lines, d2, nullptr, [n, w] {
+        return [n, w, s = LineScratch(n)](float* line, const std::uint8_t*) mutable {
+            if (lower_envelope(line, n, w, 0, 1, n, s.env_in.data(), s.v.data(), s.z.data()))
+                std::copy(s.env_in.begin(), s.env_in.end(), line);
+        };
+    });
 }
 
 // --- signed distance -------------------------------------------------------------------------
@@ -201,7 +228,7 @@ void row_pass_boxes(const core::LabelImage3D& mask, float* d2)
     const auto count = static_cast<long long>(lines.count);
     // A box d voxels away is (d - 1/2) voxels away.
     const auto box = [h2](int d) { return static_cast<float>(h2 * (double(d) - 0.5) * (double(d) - 0.5)); };
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (lines.count * std::size_t(n) >= kParallelVoxels)
     for (long long L = 0; L < count; ++L) {
         const std::size_t b = lines.first(static_cast<std::size_t>(L));
         const std::uint8_t* m = mask.data.data() + b;
@@ -244,29 +271,18 @@ void line_pass_boxes(const core::LabelImage3D& mask, int axis, float* d2)
     const int m = 2 * n + 1;
     const double half = 0.5 * mask.spacing[axis];
     const double w = half * half;
-    const auto count = static_cast<long long>(lines.count);
-#pragma omp parallel
-    {
-        LineScratch s(n);
-#pragma omp for schedule(static)
-        for (long long L = 0; L < count; ++L) {
-            const std::size_t b = lines.first(static_cast<std::size_t>(L));
-            int inside = 0;
-            for (int t = 0; t < n; ++t) {
-                const std::size_t at = b + static_cast<std::size_t>(t) * lines.stride;
-                s.line[static_cast<std::size_t>(t)] = d2[at];
-                s.mask[static_cast<std::size_t>(t)] = mask.data[at] ? 1 : 0;
-                inside += s.mask[static_cast<std::size_t>(t)];
-            }
+    for_each_line(lines, d2, mask.data.data(), [n, m, w] {
+        return [n, m, w, s = LineScratch(n)](float* line, const std::uint8_t* in) mutable {
             // Partial distances to the inside (for outside voxels) and to the outside (for
             // inside voxels); a voxel's distance to its own class is 0.
             float* fin = s.site_in.data();
             float* fout = s.site_out.data();
+            int inside = 0;
             for (int t = 0; t < n; ++t) {
-                const bool in = s.mask[static_cast<std::size_t>(t)] != 0;
-                const float val = s.line[static_cast<std::size_t>(t)];
-                fin[2 * t + 1] = in ? 0.f : val;
-                fout[2 * t + 1] = in ? val : 0.f;
+                const bool is_in = in[t] != 0;
+                inside += is_in;
+                fin[2 * t + 1] = is_in ? 0.f : line[t];
+                fout[2 * t + 1] = is_in ? line[t] : 0.f;
             }
             fin[0] = fin[2 * n] = kInf; // never nearer than voxel 0 or n-1 themselves
             fout[0] = fout[2 * n] = 0.f;
@@ -280,13 +296,10 @@ void line_pass_boxes(const core::LabelImage3D& mask, int axis, float* d2)
                 std::fill(s.env_in.begin(), s.env_in.end(), kInf);
             if (inside > 0)
                 lower_envelope(fout, m, w, 1, 2, n, s.env_out.data(), s.v.data(), s.z.data());
-            for (int t = 0; t < n; ++t) {
-                const std::size_t at = b + static_cast<std::size_t>(t) * lines.stride;
-                d2[at] = s.mask[static_cast<std::size_t>(t)] ? s.env_out[static_cast<std::size_t>(t)]
-                                                             : s.env_in[static_cast<std::size_t>(t)];
-            }
-        }
-    }
+            for (int t = 0; t < n; ++t)
+                line[t] = in[t] ? s.env_out[static_cast<std::size_t>(t)] : s.env_in[static_cast<std::size_t>(t)];
+        };
+    });
 }
 
 } // namespace
@@ -303,7 +316,7 @@ core::ImageF euclidean_distance(const core::LabelImage3D& features)
             line_pass_centres(features, a, d.data.data());
     const auto n = static_cast<long long>(d.data.size());
     float* p = d.data.data();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (std::size_t(n) >= kParallelVoxels)
     for (long long i = 0; i < n; ++i)
         p[i] = std::sqrt(p[i]);
     return d;
@@ -322,7 +335,7 @@ core::ImageF signed_distance(const core::LabelImage3D& mask)
     const auto n = static_cast<long long>(phi.data.size());
     float* p = phi.data.data();
     const std::uint8_t* m = mask.data.data();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (std::size_t(n) >= kParallelVoxels)
     for (long long i = 0; i < n; ++i)
         p[i] = m[i] ? -std::sqrt(p[i]) : std::sqrt(p[i]);
     return phi;

@@ -67,7 +67,7 @@ core::LabelImage3D border(const core::LabelImage3D& m, const Box& box)
     std::array<int, 3> r{};
     for (int c = 0; c < 3; ++c)
         r[c] = m.size[c] > 1 ? 1 : 0;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (out.data.size() >= (std::size_t(1) << 16))
     for (int k = box.lo[2]; k <= box.hi[2]; ++k)
         for (int j = box.lo[1]; j <= box.hi[1]; ++j)
             for (int i = box.lo[0]; i <= box.hi[0]; ++i) {
