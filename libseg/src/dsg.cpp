@@ -13,6 +13,10 @@ namespace {
 
 using Index = std::ptrdiff_t;
 
+//! Below this many voxels of work a loop runs on one thread: forking costs more than it saves,
+//! and on a busy machine a descheduled helper thread stalls the whole loop.
+constexpr Index kParallelMin = Index(1) << 15;
+
 //! The pole of tan(tan(tan(x))): tan(tan(x)) = π/2, i.e. x = atan(atan(π/2)) ≈ 0.787347.
 const double kPole = std::atan(std::atan(0.5 * 3.14159265358979323846));
 
@@ -62,7 +66,7 @@ core::ImageF dsg_edge_map(const core::ImageF& edge, const VectorField& direction
     const Index nn = static_cast<Index>(n);
     float fmax = 0.f;
     bool finite = true;
-#pragma omp parallel for schedule(static) reduction(max : fmax) reduction(&& : finite)
+#pragma omp parallel for if (nn > kParallelMin) schedule(static) reduction(max : fmax) reduction(&& : finite)
     for (Index i = 0; i < nn; ++i) {
         const auto u = static_cast<std::size_t>(i);
         const float f = edge.data[u];
@@ -84,7 +88,7 @@ core::ImageF dsg_edge_map(const core::ImageF& edge, const VectorField& direction
     // ridge of f, so a pointwise Λ would boost the flanks and split every edge in two.
     const VectorField g = gradient(edge);
     core::ImageF lam(edge.geometry(), 0.f), g2(edge.geometry(), 0.f);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (nn > kParallelMin) schedule(static)
     for (Index i = 0; i < nn; ++i) {
         const auto u = static_cast<std::size_t>(i);
         const float gx = g.c[0].data[u], gy = g.c[1].data[u], gz = g.c[2].data[u];
@@ -100,7 +104,7 @@ core::ImageF dsg_edge_map(const core::ImageF& edge, const VectorField& direction
     lam = gaussian_smooth(lam, sigma);
     g2 = gaussian_smooth(g2, sigma);
     float g2max = 0.f;
-#pragma omp parallel for schedule(static) reduction(max : g2max)
+#pragma omp parallel for if (nn > kParallelMin) schedule(static) reduction(max : g2max)
     for (Index i = 0; i < nn; ++i)
         g2max = std::max(g2max, g2.data[static_cast<std::size_t>(i)]);
     // Below this the local energy is rounding noise, and the ratio would be noise too.
@@ -111,7 +115,7 @@ core::ImageF dsg_edge_map(const core::ImageF& edge, const VectorField& direction
     const double inv_top = 1.0 / ttt(s);
     const double inv_fmax = 1.0 / double(fmax);
     core::ImageF fh(edge.geometry());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (nn > kParallelMin) schedule(static)
     for (Index i = 0; i < nn; ++i) {
         const auto u = static_cast<std::size_t>(i);
         fh.data[u] = static_cast<float>(kernel(double(edge.data[u]) * inv_fmax, s, inv_top));
@@ -121,7 +125,7 @@ core::ImageF dsg_edge_map(const core::ImageF& edge, const VectorField& direction
     const Index sy = nx, sz = nx * ny;
     const float gain = static_cast<float>(params.gain);
     float omax = 0.f;
-#pragma omp parallel for schedule(static) reduction(max : omax)
+#pragma omp parallel for if (nn > kParallelMin) schedule(static) reduction(max : omax)
     for (Index row = 0; row < ny * nz; ++row) {
         const Index j = row % ny, k = row / ny;
         const Index base = row * nx;
@@ -149,7 +153,7 @@ core::ImageF dsg_edge_map(const core::ImageF& edge, const VectorField& direction
     }
     if (omax > 0.f) {
         const float inv = 1.f / omax;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (nn > kParallelMin) schedule(static)
         for (Index i = 0; i < nn; ++i)
             out.data[static_cast<std::size_t>(i)] *= inv;
     }

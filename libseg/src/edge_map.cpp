@@ -16,6 +16,10 @@ namespace {
 
 using Index = std::ptrdiff_t;
 
+//! Below this many voxels of work a loop runs on one thread: forking costs more than it saves,
+//! and on a busy machine a descheduled helper thread stalls the whole loop.
+constexpr Index kParallelMin = Index(1) << 15;
+
 void check_image(const core::ImageGeometry& g, std::size_t data_size, const std::string& what)
 {
     core::validate_geometry(g, what);
@@ -60,7 +64,7 @@ Index first_non_finite(const std::vector<float>& d, std::size_t& count)
     Index first = std::numeric_limits<Index>::max();
     std::size_t n_bad = 0;
     const Index n = static_cast<Index>(d.size());
-#pragma omp parallel for schedule(static) reduction(min : first) reduction(+ : n_bad)
+#pragma omp parallel for if (n > kParallelMin) schedule(static) reduction(min : first) reduction(+ : n_bad)
     for (Index i = 0; i < n; ++i)
         if (!std::isfinite(d[static_cast<std::size_t>(i)])) {
             ++n_bad;
@@ -80,7 +84,7 @@ float robust_max(const std::vector<float>& v, float vmax)
     auto bin_of = [&](float x) { return std::min(kBins - 1, static_cast<int>(x * to_bin)); };
     std::vector<std::size_t> hist(kBins, 0);
     const Index n = static_cast<Index>(v.size());
-#pragma omp parallel
+#pragma omp parallel if (n > kParallelMin)
     {
         std::vector<std::size_t> local(kBins, 0);
 #pragma omp for schedule(static) nowait
@@ -130,7 +134,7 @@ core::ImageF apply_window(const core::ImageF& image, const IntensityWindow& wind
     const double lo = window.level - 0.5 * window.width;
     const double inv = 1.0 / window.width;
     const Index n = static_cast<Index>(out.data.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (n > kParallelMin) schedule(static)
     for (Index i = 0; i < n; ++i) {
         float& v = out.data[static_cast<std::size_t>(i)];
         const double t = (static_cast<double>(v) - lo) * inv;
@@ -170,7 +174,7 @@ core::ImageF gaussian_smooth(const core::ImageF& image, double sigma_mm)
     const int rz = static_cast<int>(w.size() / 2);
     const core::ImageF in_plane = out;
     const Index rows = static_cast<Index>(ny) * nz;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (rows * nx > kParallelMin) schedule(static)
     for (Index row = 0; row < rows; ++row) {
         const Index j = row % ny, k = row / ny;
         float* dst = out.data.data() + static_cast<std::size_t>(k) * slice + static_cast<std::size_t>(j * nx);
@@ -195,7 +199,7 @@ VectorField gradient(const core::ImageF& image)
     const Index n[3] = {nx, ny, nz};
     const float* f = image.data.data();
     const Index rows = ny * nz;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (rows * nx > kParallelMin) schedule(static)
     for (Index row = 0; row < rows; ++row) {
         const Index j = row % ny, k = row / ny;
         const Index base = row * nx;
@@ -236,7 +240,7 @@ core::ImageF magnitude(const VectorField& v)
     core::ImageF out(v.geometry());
     const Index n = static_cast<Index>(out.data.size());
     const float *x = v.c[0].data.data(), *y = v.c[1].data.data(), *z = v.c[2].data.data();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (n > kParallelMin) schedule(static)
     for (Index i = 0; i < n; ++i)
         out.data[static_cast<std::size_t>(i)] = std::sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i]);
     return out;
@@ -267,7 +271,7 @@ EdgeMapResult edge_map(const core::ImageF& image, const EdgeMapParams& params)
     const std::vector<float>& gm = r.gradient_magnitude.data;
     float gmax = 0.f;
     const Index n = static_cast<Index>(gm.size());
-#pragma omp parallel for schedule(static) reduction(max : gmax)
+#pragma omp parallel for if (n > kParallelMin) schedule(static) reduction(max : gmax)
     for (Index i = 0; i < n; ++i)
         gmax = std::max(gmax, gm[static_cast<std::size_t>(i)]);
     // Robust max: the 99.9th percentile of the non-zero magnitudes, so a handful of extreme
@@ -283,7 +287,7 @@ EdgeMapResult edge_map(const core::ImageF& image, const EdgeMapParams& params)
     r.stopping = core::ImageF(image.geometry());
     const float inv_scale = 1.f / scale;
     const float inv_k = static_cast<float>(1.0 / params.stopping_k);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (n > kParallelMin) schedule(static)
     for (Index i = 0; i < n; ++i) {
         const auto u = static_cast<std::size_t>(i);
         r.edge.data[u] = std::min(1.f, gm[u] * inv_scale);
@@ -307,7 +311,7 @@ core::LabelImage3D binary_edges(const core::ImageF& edge, const BinaryEdgeParams
     // Seeds: strong voxels. 2 marks "weak candidate not yet reached" so the flood fill needs
     // no second image; the candidates left at 2 are dropped at the end.
     std::vector<Index> stack;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (n > kParallelMin) schedule(static)
     for (Index i = 0; i < n; ++i) {
         const float f = edge.data[static_cast<std::size_t>(i)];
         out.data[static_cast<std::size_t>(i)] = f >= high ? 1 : (f >= low ? 2 : 0);
@@ -334,7 +338,7 @@ core::LabelImage3D binary_edges(const core::ImageF& edge, const BinaryEdgeParams
                     }
                 }
     }
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (n > kParallelMin) schedule(static)
     for (Index i = 0; i < n; ++i) {
         auto& v = out.data[static_cast<std::size_t>(i)];
         if (v == 2)
@@ -355,7 +359,7 @@ core::ImageF energy_competition(const core::ImageF& edge, const core::LabelImage
                                       std::to_string(weight));
     core::ImageF out = edge;
     const Index n = static_cast<Index>(out.data.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (n > kParallelMin) schedule(static)
     for (Index i = 0; i < n; ++i)
         if (aoi.data[static_cast<std::size_t>(i)] == 0)
             out.data[static_cast<std::size_t>(i)] *= weight;
