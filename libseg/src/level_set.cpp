@@ -23,12 +23,22 @@ using Index = std::int64_t;
 constexpr std::uint8_t kInBand = 1;     // the voxel is in the current band
 constexpr std::uint8_t kSnapInside = 2; // inside at the voxel's last convergence accounting
 
+// Neighbour bits of a band voxel: which face neighbours exist (grid border, inactive axis) and
+// whether one of them is outside the band (the front near such a voxel triggers re-initialisation).
+constexpr std::uint8_t kHasXm = 1, kHasXp = 2, kHasYm = 4, kHasYp = 8, kHasZm = 16, kHasZp = 32, kEdge = 64;
+
 // A stationary front keeps steepening φ (the pressure keeps pushing on both sides of it), so φ is
 // also re-initialised at this period, not only when the front nears the band edge.
 constexpr int kReinitPeriod = 50;
 
 // Below this |∇φ|^2 the curvature is undefined (flat φ, e.g. the centre of a tiny blob): no term.
 constexpr double kMinGrad2 = 1e-12;
+
+// One iteration over a smaller band takes well under a millisecond: a second thread gains little
+// there and loses a scheduler time slice per barrier whenever the machine is busy.
+constexpr Index kParallelBand = Index(1) << 15;
+// Same reasoning for the passes over the whole grid.
+constexpr Index kParallelGrid = Index(1) << 16;
 
 double sq(double v) { return v * v; }
 
@@ -46,11 +56,10 @@ Grid make_grid(const core::ImageGeometry& geo)
 {
     Grid g;
     g.count = geo.voxel_count();
-    for (int a = 0; a < 3; ++a) {
-        const auto ua = static_cast<std::size_t>(a);
-        g.n[ua] = geo.size[ua];
-        g.h[ua] = geo.spacing[ua];
-        g.active[ua] = geo.size[ua] > 1;
+    for (std::size_t a = 0; a < 3; ++a) {
+        g.n[a] = geo.size[a];
+        g.h[a] = geo.spacing[a];
+        g.active[a] = geo.size[a] > 1;
     }
     g.stride = {1, g.n[0], Index{g.n[0]} * g.n[1]};
     g.hmin = std::numeric_limits<double>::infinity();
@@ -68,7 +77,7 @@ Grid make_grid(const core::ImageGeometry& geo)
 struct BandVoxel {
     Index idx;
     std::int32_t i, j, k;
-    bool edge; // has a face neighbour outside the band: the front near it triggers re-initialisation
+    std::uint8_t nb; // kHas* and kEdge bits
 };
 
 // ---------------------------------------------------------------------------- validation
@@ -80,7 +89,7 @@ void check_image(const ImageF& img, const core::ImageGeometry& grid, const std::
     const float* d = img.data.data();
     const auto n = static_cast<Index>(img.data.size());
     bool bad = false, negative = false;
-#pragma omp parallel for schedule(static) reduction(|| : bad, negative)
+#pragma omp parallel for schedule(static) reduction(|| : bad, negative) if (n >= kParallelGrid)
     for (Index v = 0; v < n; ++v) {
         bad = bad || !std::isfinite(d[v]);
         negative = negative || d[v] < 0.f;
@@ -111,9 +120,11 @@ void check_params(const LevelSetParams& p)
 class Evolver {
 public:
     Evolver(ImageF& phi, const SpeedTerms& terms, const LevelSetParams& params)
-        : g_(make_grid(phi.geometry())), phi_(phi.data.data()), params_(params),
-          width_(params.band_voxels * g_.hmax), flags_(g_.count, 0), slot_(g_.count, -1)
+        : g_(make_grid(phi.geometry())), phi_(phi), params_(params), width_(params.band_voxels * g_.hmax),
+          patch_(0.5 * g_.hmax), other_(g_.count), flags_(g_.count, 0), slot_(g_.count, -1)
     {
+        cur_ = phi.data.data();
+        nxt_ = other_.data();
         eps_ = terms.curvature_weight;
         curv_ = eps_ > 0.0;
         stop_ = terms.stopping ? terms.stopping->data.data() : nullptr;
@@ -134,39 +145,53 @@ public:
     //! false if there is no front (no sign change anywhere).
     bool redistance(bool initial);
 
-    //! One explicit step over the band; returns false if the front vanished or filled the grid.
+    //! One explicit step over the band; false if the front vanished or filled the grid.
     bool step(bool& near_edge);
 
     //! The convergence measure over the interval since the previous check.
     double check();
 
-private:
-    double time_step() const;
-    template <bool k3D>
-    float updated(const BandVoxel& bv) const;
-    bool interface_site(Index v, int i, int j, int k);
-    void account(Index v)
+    //! Leaves the latest φ in the result image.
+    void finish()
     {
-        const bool in = phi_[v] < 0.f;
-        if (in != ((flags_[static_cast<std::size_t>(v)] & kSnapInside) != 0)) {
-            ++pending_changes_;
-            flags_[static_cast<std::size_t>(v)] ^= kSnapInside;
-        }
+        if (cur_ != phi_.data.data())
+            std::copy(cur_, cur_ + g_.count, phi_.data.begin());
     }
-    bool any_sign(bool inside) const;
 
+private:
     struct Site {
         Index idx;
         std::int32_t i, j, k;
         bool inside;
-        double d;                   // distance to the zero level set [mm]
-        std::array<double, 3> foot; // nearest point found on the zero level set [mm, index-aligned]
+        float d;                   // distance to the zero level set [mm]
+        std::array<float, 3> foot; // a point of the zero level set [mm, index-aligned axes]
+        std::array<float, 3> normal; // the front's unit normal there (zero if unknown)
+        std::int32_t origin;         // the interface site whose foot point this is
     };
 
+    double time_step() const;
+    template <bool k3D>
+    float updated(const BandVoxel& bv) const;
+    bool interface_site(Index v, int i, int j, int k);
+    double patch_distance2(const std::array<double, 3>& x, const Site& s) const;
+    template <bool k3D>
+    void step_band(Index& inside, bool& near);
+    std::uint8_t neighbour_bits(int i, int j, int k) const;
+    bool any_sign(bool inside) const;
+    void account(Index v)
+    {
+        const auto u = static_cast<std::size_t>(v);
+        if ((cur_[u] < 0.f) != ((flags_[u] & kSnapInside) != 0)) {
+            ++pending_changes_;
+            flags_[u] ^= kSnapInside;
+        }
+    }
+
     Grid g_;
-    float* phi_;
+    ImageF& phi_;
     LevelSetParams params_;
     double width_; // band half-width W [mm]
+    double patch_; // radius of the flat front patch around a foot point [mm]
     double eps_ = 0.0;
     bool curv_ = false, has_adv_ = false;
     const float* stop_ = nullptr;
@@ -176,11 +201,17 @@ private:
     double kappa_max_ = 0.0;
     double dt_ = 0.0;
 
+    // Two full copies of φ: a step reads one and writes the band of the other, then they swap.
+    // Voxels outside the band hold ±W in both.
+    std::vector<float> other_;
+    float* cur_ = nullptr;
+    float* nxt_ = nullptr;
     std::vector<std::uint8_t> flags_;
     std::vector<std::int32_t> slot_; // voxel -> index in sites_ during redistancing; -1 none, -2 queued
     std::vector<Site> sites_;
+    std::vector<Site> queued_;
+    std::vector<std::size_t> level_;
     std::vector<BandVoxel> band_;
-    std::vector<float> next_;
     Index pending_changes_ = 0; // status changes of voxels that left the band since the last check
 };
 
@@ -197,7 +228,7 @@ double Evolver::time_step() const
     const double curv_rate = 4.0 * eps_ * inv_h2;
     const auto n = static_cast<Index>(g_.count);
     double worst = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : worst)
+#pragma omp parallel for schedule(static) reduction(max : worst) if (n >= kParallelGrid)
     for (Index v = 0; v < n; ++v) {
         double r = 0.0;
         if (curv_)
@@ -218,28 +249,24 @@ double Evolver::time_step() const
 template <bool k3D>
 float Evolver::updated(const BandVoxel& bv) const
 {
-    const float* phi = phi_;
+    const float* phi = cur_;
     const Index v = bv.idx;
     auto p = [phi, v](Index off) { return double(phi[v + off]); };
     const Index sy = g_.stride[1], sz = g_.stride[2];
-    const Index xm = bv.i > 0 ? -1 : 0, xp = bv.i < g_.n[0] - 1 ? 1 : 0;
-    const Index ym = bv.j > 0 ? -sy : 0, yp = bv.j < g_.n[1] - 1 ? sy : 0;
-    Index zm = 0, zp = 0;
-    if constexpr (k3D) {
-        zm = bv.k > 0 ? -sz : 0;
-        zp = bv.k < g_.n[2] - 1 ? sz : 0;
-    }
+    const std::uint8_t nb = bv.nb;
+    const Index xm = nb & kHasXm ? -1 : 0, xp = nb & kHasXp ? 1 : 0;
+    const Index ym = nb & kHasYm ? -sy : 0, yp = nb & kHasYp ? sy : 0;
     const double ihx = ih_[0], ihy = ih_[1], ihz = ih_[2];
     const double c = p(0);
-    const double fxm = p(xm), fxp = p(xp), fym = p(ym), fyp = p(yp);
-    const double dmx = (c - fxm) * ihx, dpx = (fxp - c) * ihx;
-    const double dmy = (c - fym) * ihy, dpy = (fyp - c) * ihy;
-    double fzm = c, fzp = c, dmz = 0, dpz = 0;
+    const double dmx = (c - p(xm)) * ihx, dpx = (p(xp) - c) * ihx;
+    const double dmy = (c - p(ym)) * ihy, dpy = (p(yp) - c) * ihy;
+    Index zm = 0, zp = 0;
+    double dmz = 0, dpz = 0;
     if constexpr (k3D) {
-        fzm = p(zm);
-        fzp = p(zp);
-        dmz = (c - fzm) * ihz;
-        dpz = (fzp - c) * ihz;
+        zm = nb & kHasZm ? -sz : 0;
+        zp = nb & kHasZp ? sz : 0;
+        dmz = (c - p(zm)) * ihz;
+        dpz = (p(zp) - c) * ihz;
     }
 
     double rate = 0.0;
@@ -261,10 +288,12 @@ float Evolver::updated(const BandVoxel& bv) const
             g2 = fx * fx + fy * fy;
         }
         if (g2 > kMinGrad2) {
-            const double gn = std::sqrt(g2);
-            // The clamp at the grid's resolvable curvature keeps a near-flat φ from blowing up.
-            const double kappa = std::clamp(num / (g2 * gn), -kappa_max_, kappa_max_);
-            rate += eps_ * (stop_ ? double(stop_[v]) : 1.0) * kappa * gn;
+            // κ|∇φ| = num / |∇φ|^2, with κ clamped to the grid's resolvable curvature so that a
+            // near-flat φ cannot blow up (the sqrt is only needed when the clamp acts).
+            double kg = num / g2;
+            if (num * num > kappa_max_ * kappa_max_ * g2 * g2 * g2)
+                kg = std::copysign(kappa_max_ * std::sqrt(g2), num);
+            rate += eps_ * (stop_ ? double(stop_[v]) : 1.0) * kg;
         }
     }
     if (press_) {
@@ -302,32 +331,38 @@ float Evolver::updated(const BandVoxel& bv) const
     return static_cast<float>(c + dt_ * rate);
 }
 
-bool Evolver::step(bool& near_edge)
+template <bool k3D>
+void Evolver::step_band(Index& inside, bool& near)
 {
     const auto nb = static_cast<Index>(band_.size());
-    next_.resize(band_.size());
-    const bool three_d = g_.active[2];
     const double trigger = g_.hmax; // the front within one voxel of a band-edge voxel
-    Index inside = 0;
-    bool near = false;
-#pragma omp parallel if (nb > 1024)
-    {
-#pragma omp for schedule(static) reduction(+ : inside) reduction(|| : near)
-        for (Index b = 0; b < nb; ++b) {
-            const BandVoxel& bv = band_[static_cast<std::size_t>(b)];
-            const float f = three_d ? updated<true>(bv) : updated<false>(bv);
-            next_[static_cast<std::size_t>(b)] = f;
-            inside += f < 0.f;
-            near = near || (bv.edge && std::abs(double(f)) <= trigger);
-        }
-#pragma omp for schedule(static)
-        for (Index b = 0; b < nb; ++b)
-            phi_[band_[static_cast<std::size_t>(b)].idx] = next_[static_cast<std::size_t>(b)];
+    float* out = nxt_;
+    Index in = 0;
+    bool nr = false;
+#pragma omp parallel for schedule(static) reduction(+ : in) reduction(|| : nr) if (nb >= kParallelBand)
+    for (Index b = 0; b < nb; ++b) {
+        const BandVoxel& bv = band_[static_cast<std::size_t>(b)];
+        const float f = updated<k3D>(bv);
+        out[bv.idx] = f;
+        in += f < 0.f;
+        nr = nr || ((bv.nb & kEdge) && std::abs(double(f)) <= trigger);
     }
-    near_edge = near;
+    inside = in;
+    near = nr;
+}
+
+bool Evolver::step(bool& near_edge)
+{
+    Index inside = 0;
+    if (g_.active[2])
+        step_band<true>(inside, near_edge);
+    else
+        step_band<false>(inside, near_edge);
+    std::swap(cur_, nxt_);
     // Voxels outside the band never change sign, and the band surrounds every front, so an
     // all-outside (all-inside) band means no voxel is inside (outside) unless the front escaped
     // the band; the full scan settles that rare case.
+    const auto nb = static_cast<Index>(band_.size());
     if (inside == 0)
         return any_sign(true);
     if (inside == nb)
@@ -338,104 +373,120 @@ bool Evolver::step(bool& near_edge)
 bool Evolver::any_sign(bool inside) const
 {
     const auto n = static_cast<Index>(g_.count);
+    const float* p = cur_;
     bool found = false;
-#pragma omp parallel for schedule(static) reduction(|| : found)
+#pragma omp parallel for schedule(static) reduction(|| : found) if (n >= kParallelGrid)
     for (Index v = 0; v < n; ++v)
-        found = found || ((phi_[v] < 0.f) == inside);
+        found = found || ((p[v] < 0.f) == inside);
     return found;
 }
 
 double Evolver::check()
 {
     const auto nb = static_cast<Index>(band_.size());
+    const float* p = cur_;
+    const Index sy = g_.stride[1], sz = g_.stride[2];
     Index changed = 0, boundary = 0;
-    const std::array<std::size_t, 3> axes{0, 1, 2};
-#pragma omp parallel for schedule(static) reduction(+ : changed, boundary) if (nb > 1024)
+#pragma omp parallel for schedule(static) reduction(+ : changed, boundary) if (nb >= kParallelBand)
     for (Index b = 0; b < nb; ++b) {
         const BandVoxel& bv = band_[static_cast<std::size_t>(b)];
         const auto v = static_cast<std::size_t>(bv.idx);
-        const bool in = phi_[v] < 0.f;
+        const bool in = p[v] < 0.f;
         if (in != ((flags_[v] & kSnapInside) != 0)) {
             ++changed;
             flags_[v] ^= kSnapInside;
         }
-        if (!in)
-            continue;
-        const std::array<int, 3> ijk{bv.i, bv.j, bv.k};
-        bool touches = false;
-        for (std::size_t a : axes) {
-            if (!g_.active[a])
-                continue;
-            if ((ijk[a] > 0 && phi_[v - static_cast<std::size_t>(g_.stride[a])] >= 0.f) ||
-                (ijk[a] < g_.n[a] - 1 && phi_[v + static_cast<std::size_t>(g_.stride[a])] >= 0.f))
-                touches = true;
+        if (in) {
+            const Index i = bv.idx;
+            const std::uint8_t m = bv.nb;
+            boundary += ((m & kHasXm) && p[i - 1] >= 0.f) || ((m & kHasXp) && p[i + 1] >= 0.f) ||
+                        ((m & kHasYm) && p[i - sy] >= 0.f) || ((m & kHasYp) && p[i + sy] >= 0.f) ||
+                        ((m & kHasZm) && p[i - sz] >= 0.f) || ((m & kHasZp) && p[i + sz] >= 0.f);
         }
-        boundary += touches;
     }
     changed += pending_changes_;
     pending_changes_ = 0;
     return double(changed) / double(std::max<Index>(boundary, 1));
 }
 
-// A voxel with a face neighbour of the other sign: its distance to the front is that of the
-// plane through the per-axis crossings (linear interpolation of φ), d = 1/sqrt(Σ 1/d_a^2), and
-// its foot point is that plane's nearest point. First-order accurate and keeps the zero level
-// set where linear interpolation of φ puts it.
+std::uint8_t Evolver::neighbour_bits(int i, int j, int k) const
+{
+    std::uint8_t m = 0;
+    if (g_.active[0])
+        m |= static_cast<std::uint8_t>((i > 0 ? kHasXm : 0) | (i < g_.n[0] - 1 ? kHasXp : 0));
+    if (g_.active[1])
+        m |= static_cast<std::uint8_t>((j > 0 ? kHasYm : 0) | (j < g_.n[1] - 1 ? kHasYp : 0));
+    if (g_.active[2])
+        m |= static_cast<std::uint8_t>((k > 0 ? kHasZm : 0) | (k < g_.n[2] - 1 ? kHasZp : 0));
+    return m;
+}
+
+// A voxel with a face neighbour of the other sign. Its distance to the front is |φ| / |∇φ|, the
+// derivative along an axis that crosses the front being the difference across the front (the
+// larger one if both neighbours cross) and the central difference along the others. Exact for a
+// linear φ, and along a crossing axis it keeps the zero where linear interpolation of the old φ
+// had it (Russo & Smereka 2000), so redistancing does not move the front; unlike their larger
+// one-sided difference it ignores the jump to a clamped ±W neighbour at the band edge. The foot
+// point lies that far along the central-difference normal.
 bool Evolver::interface_site(Index v, int i, int j, int k)
 {
+    const float* p = cur_;
     const std::array<int, 3> ijk{i, j, k};
-    const double fv = phi_[v];
-    const bool in = fv < 0.0;
-    double inv2 = 0.0;
-    std::array<double, 3> dir{0, 0, 0};
-    bool any = false, zero = false;
+    const double f = p[v];
+    const bool in = f < 0.0;
+    bool crossing = false;
+    double big2 = 0.0;
+    std::array<double, 3> grad{0, 0, 0};
     for (std::size_t a = 0; a < 3; ++a) {
         if (!g_.active[a])
             continue;
-        double best = std::numeric_limits<double>::infinity();
-        double side = 0.0;
-        for (int s = -1; s <= 1; s += 2) {
-            const int na = ijk[a] + s;
-            if (na < 0 || na >= g_.n[a])
-                continue;
-            const double fn = phi_[v + s * g_.stride[a]];
-            if ((fn < 0.0) == in)
-                continue;
-            const double t = g_.h[a] * fv / (fv - fn); // in [0, h_a]: the signs differ
-            if (t < best) {
-                best = t;
-                side = s;
-            }
+        const bool hm = ijk[a] > 0, hp = ijk[a] < g_.n[a] - 1;
+        const double fm = hm ? double(p[v - g_.stride[a]]) : f;
+        const double fp = hp ? double(p[v + g_.stride[a]]) : f;
+        const bool cm = hm && (fm < 0.0) != in, cp = hp && (fp < 0.0) != in;
+        grad[a] = (fp - fm) * ih_[a] / double((hm ? 1 : 0) + (hp ? 1 : 0));
+        double da = std::abs(grad[a]);
+        if (cm || cp) {
+            crossing = true;
+            da = std::max(cm ? std::abs(f - fm) : 0.0, cp ? std::abs(fp - f) : 0.0) * ih_[a];
         }
-        if (side == 0.0)
-            continue;
-        any = true;
-        if (best <= 0.0)
-            zero = true;
-        else {
-            inv2 += 1.0 / (best * best);
-            dir[a] = side / best;
-        }
+        big2 += da * da;
     }
-    if (!any)
+    if (!crossing)
         return false;
-    Site s{v, i, j, k, in, 0.0, {i * g_.h[0], j * g_.h[1], k * g_.h[2]}};
-    if (!zero) {
-        const double d2 = 1.0 / inv2;
-        s.d = std::sqrt(d2);
-        for (std::size_t a = 0; a < 3; ++a)
-            s.foot[a] += dir[a] * d2;
+    const double d = std::abs(f) / std::sqrt(big2); // big2 > 0: the signs differ across an axis
+    const double gn = std::sqrt(sq(grad[0]) + sq(grad[1]) + sq(grad[2]));
+    const auto id = static_cast<std::int32_t>(sites_.size());
+    Site s{v, i, j, k, in, static_cast<float>(d), {}, {}, id};
+    const std::array<double, 3> x{i * g_.h[0], j * g_.h[1], k * g_.h[2]};
+    for (std::size_t a = 0; a < 3; ++a) {
+        const double n = gn > 0.0 ? grad[a] / gn : 0.0;
+        s.normal[a] = static_cast<float>(n);
+        s.foot[a] = static_cast<float>(x[a] - (in ? -d : d) * n);
     }
-    slot_[static_cast<std::size_t>(v)] = static_cast<std::int32_t>(sites_.size());
+    slot_[static_cast<std::size_t>(v)] = id;
     sites_.push_back(s);
     return true;
 }
 
-// Sub-voxel redistancing restricted to the band: interface voxels get the plane distance and
-// foot point above; the foot points then spread outwards breadth-first (each voxel takes the
-// nearest foot among its already reached face neighbours), stopping beyond the band width.
-// Cost O(band voxels), versus O(grid) for a full distance transform; the sign of every voxel is
-// kept, so the inside set is unchanged.
+// Squared distance from x to the front as seen from a site: the front is a flat patch of radius `patch_`
+// around the foot point, perpendicular to the site's normal. Far better than the distance to the
+// foot point itself, which overestimates by up to s^2/(8d) for foot points s apart.
+double Evolver::patch_distance2(const std::array<double, 3>& x, const Site& s) const
+{
+    const std::array<double, 3> r{x[0] - double(s.foot[0]), x[1] - double(s.foot[1]), x[2] - double(s.foot[2])};
+    const double r2 = sq(r[0]) + sq(r[1]) + sq(r[2]);
+    const double dn = r[0] * double(s.normal[0]) + r[1] * double(s.normal[1]) + r[2] * double(s.normal[2]);
+    const double lateral2 = std::max(r2 - dn * dn, 0.0);
+    if (lateral2 <= patch_ * patch_)
+        return dn * dn;
+    return dn * dn + sq(std::sqrt(lateral2) - patch_);
+}
+
+// Sub-voxel redistancing restricted to the band: interface voxels get the local distance above;
+// the sites (foot point and normal) then spread outwards breadth-first, each voxel taking the
+// nearest front patch among its already reached face neighbours', stopping beyond the band width.
+// Cost O(band voxels), not O(grid) as a full distance transform; the sign of every voxel is kept.
 bool Evolver::redistance(bool initial)
 {
     sites_.clear();
@@ -450,15 +501,14 @@ bool Evolver::redistance(bool initial)
     }
     const bool front = !sites_.empty();
 
-    std::vector<std::size_t> level(sites_.size());
-    for (std::size_t s = 0; s < level.size(); ++s)
-        level[s] = s;
-    std::vector<Site> queued;
-    while (!level.empty()) {
-        queued.clear();
-        for (std::size_t s : level) {
+    level_.resize(sites_.size());
+    for (std::size_t s = 0; s < level_.size(); ++s)
+        level_[s] = s;
+    while (!level_.empty()) {
+        queued_.clear();
+        for (std::size_t s : level_) {
             const Site site = sites_[s];
-            if (site.d > width_)
+            if (double(site.d) > width_)
                 continue;
             const std::array<int, 3> ijk{site.i, site.j, site.k};
             for (std::size_t a = 0; a < 3; ++a) {
@@ -473,38 +523,50 @@ bool Evolver::redistance(bool initial)
                     if (sl != -1)
                         continue;
                     sl = -2;
-                    std::array<int, 3> nijk = ijk;
-                    nijk[a] = na;
-                    queued.push_back({w, nijk[0], nijk[1], nijk[2], phi_[w] < 0.f, 0.0, {}});
+                    std::array<int, 3> q = ijk;
+                    q[a] = na;
+                    queued_.push_back({w, q[0], q[1], q[2], cur_[w] < 0.f, 0.f, {}, {}, -1});
                 }
             }
         }
-        level.clear();
-        for (Site& q : queued) {
+        level_.clear();
+        for (Site& q : queued_) {
             const std::array<int, 3> ijk{q.i, q.j, q.k};
             const std::array<double, 3> x{q.i * g_.h[0], q.j * g_.h[1], q.k * g_.h[2]};
             double best = std::numeric_limits<double>::infinity();
-            for (std::size_t a = 0; a < 3; ++a) {
-                if (!g_.active[a])
-                    continue;
-                for (int sd = -1; sd <= 1; sd += 2) {
-                    const int na = ijk[a] + sd;
-                    if (na < 0 || na >= g_.n[a])
-                        continue;
-                    const std::int32_t su = slot_[static_cast<std::size_t>(q.idx + sd * g_.stride[a])];
-                    if (su < 0)
-                        continue;
-                    const auto& f = sites_[static_cast<std::size_t>(su)].foot;
-                    const double d2 = sq(x[0] - f[0]) + sq(x[1] - f[1]) + sq(x[2] - f[2]);
-                    if (d2 < best) {
-                        best = d2;
-                        q.foot = f;
+            const Site* from = nullptr;
+            // Candidates from the whole 3x3(x3) neighbourhood: with face neighbours only, the
+            // nearest patch often fails to reach voxels a few layers away (Danielsson's error).
+            // Neighbours mostly carry the same patch: each patch is evaluated once.
+            std::int32_t tried[27];
+            int n_tried = 0;
+            const int k0 = g_.active[2] ? -1 : 0, k1 = g_.active[2] ? 1 : 0;
+            for (int dk = k0; dk <= k1; ++dk)
+                for (int dj = -1; dj <= 1; ++dj)
+                    for (int di = -1; di <= 1; ++di) {
+                        const int ni = ijk[0] + di, nj = ijk[1] + dj, nk = ijk[2] + dk;
+                        if (ni < 0 || nj < 0 || nk < 0 || ni >= g_.n[0] || nj >= g_.n[1] || nk >= g_.n[2])
+                            continue;
+                        const std::int32_t su =
+                            slot_[static_cast<std::size_t>(q.idx + di + dj * g_.stride[1] + dk * g_.stride[2])];
+                        if (su < 0)
+                            continue;
+                        const Site& cand = sites_[static_cast<std::size_t>(su)];
+                        if (std::find(tried, tried + n_tried, cand.origin) != tried + n_tried)
+                            continue;
+                        tried[n_tried++] = cand.origin;
+                        const double d2 = patch_distance2(x, cand);
+                        if (d2 < best) {
+                            best = d2;
+                            from = &cand;
+                        }
                     }
-                }
-            }
-            q.d = std::sqrt(best);
+            q.d = static_cast<float>(std::sqrt(best));
+            q.foot = from->foot; // every queued voxel has a reached neighbour: the one that queued it
+            q.normal = from->normal;
+            q.origin = from->origin;
             slot_[static_cast<std::size_t>(q.idx)] = static_cast<std::int32_t>(sites_.size());
-            level.push_back(sites_.size());
+            level_.push_back(sites_.size());
             sites_.push_back(q);
         }
     }
@@ -512,20 +574,22 @@ bool Evolver::redistance(bool initial)
     const auto W = static_cast<float>(width_);
     // Inside voxels stay strictly negative so that the inside set is exactly preserved.
     const auto tiny = static_cast<float>(1e-4 * g_.hmin);
+    float* a = cur_;
+    float* b = nxt_;
     if (initial) {
         for (std::size_t v = 0; v < g_.count; ++v) {
-            const bool in = phi_[v] < 0.f;
+            const bool in = a[v] < 0.f;
             flags_[v] = in ? kSnapInside : 0;
-            phi_[v] = in ? -W : W;
+            a[v] = in ? -W : W;
         }
     } else {
         // Voxels leaving the band freeze: account their status change now, clamp them to ±W.
         for (const BandVoxel& bv : band_) {
             const auto v = static_cast<std::size_t>(bv.idx);
             const std::int32_t s = slot_[v];
-            if (s < 0 || sites_[static_cast<std::size_t>(s)].d > width_) {
+            if (s < 0 || double(sites_[static_cast<std::size_t>(s)].d) > width_) {
                 account(bv.idx);
-                phi_[v] = phi_[v] < 0.f ? -W : W;
+                a[v] = b[v] = a[v] < 0.f ? -W : W;
             }
             flags_[v] &= static_cast<std::uint8_t>(~kInBand);
         }
@@ -534,24 +598,24 @@ bool Evolver::redistance(bool initial)
     for (const Site& s : sites_) {
         const auto v = static_cast<std::size_t>(s.idx);
         slot_[v] = -1;
-        if (s.d > width_) {
-            phi_[v] = s.inside ? -W : W;
+        if (double(s.d) > width_) {
+            a[v] = b[v] = s.inside ? -W : W;
             continue;
         }
-        const auto d = static_cast<float>(s.d);
-        phi_[v] = s.inside ? -std::max(d, tiny) : d;
+        a[v] = b[v] = s.inside ? -std::max(s.d, tiny) : s.d;
         flags_[v] |= kInBand;
-        band_.push_back({s.idx, s.i, s.j, s.k, false});
+        band_.push_back({s.idx, s.i, s.j, s.k, neighbour_bits(s.i, s.j, s.k)});
     }
+    if (initial)
+        std::copy(a, a + g_.count, b);
+    const Index sy = g_.stride[1], sz = g_.stride[2];
+    auto out = [this](Index w) { return !(flags_[static_cast<std::size_t>(w)] & kInBand); };
     for (BandVoxel& bv : band_) {
-        const std::array<int, 3> ijk{bv.i, bv.j, bv.k};
-        for (std::size_t a = 0; a < 3 && !bv.edge; ++a) {
-            if (!g_.active[a])
-                continue;
-            if ((ijk[a] > 0 && !(flags_[static_cast<std::size_t>(bv.idx - g_.stride[a])] & kInBand)) ||
-                (ijk[a] < g_.n[a] - 1 && !(flags_[static_cast<std::size_t>(bv.idx + g_.stride[a])] & kInBand)))
-                bv.edge = true;
-        }
+        const Index i = bv.idx;
+        const std::uint8_t m = bv.nb;
+        if (((m & kHasXm) && out(i - 1)) || ((m & kHasXp) && out(i + 1)) || ((m & kHasYm) && out(i - sy)) ||
+            ((m & kHasYp) && out(i + sy)) || ((m & kHasZm) && out(i - sz)) || ((m & kHasZp) && out(i + sz)))
+            bv.nb |= kEdge;
     }
     return front;
 }
@@ -600,6 +664,7 @@ LevelSetResult evolve_level_set(const ImageF& phi0, const SpeedTerms& terms, con
             }
         }
     }
+    ev.finish();
     r.mask = core::LabelImage3D(r.phi.geometry(), 0);
     for (std::size_t v = 0; v < r.phi.data.size(); ++v)
         r.mask.data[v] = r.phi.data[v] < 0.f ? 1 : 0;
@@ -640,7 +705,7 @@ ImageF level_set_from_seeds(const core::ImageGeometry& grid, const std::vector<c
     const int nx = grid.size[0], ny = grid.size[1];
     const auto n = static_cast<Index>(grid.voxel_count());
     // Exact signed distance outside the union of balls; inside, the depth in the nearest ball.
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n * Index(seeds.size()) >= kParallelGrid)
     for (Index v = 0; v < n; ++v) {
         const double i = double(v % nx), j = double((v / nx) % ny), k = double(v / (Index{nx} * ny));
         double best = std::numeric_limits<double>::infinity();
