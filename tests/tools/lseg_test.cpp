@@ -114,7 +114,7 @@ TEST(Lseg, EvalOfAShiftedMaskGivesTheCountedDice)
     for (const char* key : {"voe", "abs_rvd", "asd", "rmsd", "maxd", "total"})
         EXPECT_TRUE(j["score"].contains(key)) << key;
     EXPECT_EQ(j["segmentation"]["file"].get<std::string>(), seg.string());
-    EXPECT_TRUE(j["segmentation"]["label"].is_null());
+    EXPECT_TRUE(j["segmentation"]["labels"].is_null());
     r = lseg("eval " + q(seg) + " " + q(ref), dir); // the table says the same
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.out.find("0.8000"), std::string::npos) << r.out;
@@ -138,12 +138,39 @@ TEST(Lseg, LabelsSelectOneValueInEachFile)
     ASSERT_EQ(r.exit_code, 0) << r.err;
     auto j = parse_json(r);
     EXPECT_EQ(j["dice"].get<double>(), 1.0);
-    EXPECT_EQ(j["segmentation"]["label"].get<int>(), 300);
-    EXPECT_EQ(j["reference"]["label"].get<int>(), 5);
+    EXPECT_EQ(j["segmentation"]["labels"], nlohmann::json::array({300}));
+    EXPECT_EQ(j["reference"]["labels"], nlohmann::json::array({5}));
     r = lseg("eval --json " + q(dir / "multi.mhd") + " " + q(ref), dir); // every non-zero voxel: 18 columns vs 8
     ASSERT_EQ(r.exit_code, 0) << r.err;
     j = parse_json(r);
     EXPECT_NEAR(j["dice"].get<double>(), 2.0 * 8 / (18 + 8), 1e-12);
+    // A set of values: 300 and 255 together are every non-zero voxel again.
+    r = lseg("eval --json " + q(dir / "multi.mhd") + " " + q(ref) + " --label 300,255", dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NEAR(parse_json(r)["dice"].get<double>(), 2.0 * 8 / (18 + 8), 1e-12);
+}
+
+// --slice compares one axial slice: a 2-D result against a reference volume.
+TEST(Lseg, EvalOneSliceOfAVolume)
+{
+    const auto dir = test::scratch_dir();
+    const auto g = small_grid();
+    const auto vol = box_file(dir / "vol.mhd", g, {4, 4, 2}, {10, 8, 6});
+    core::LabelImage3D slice(g, 0);
+    slice = core::axial_slice(slice, 5);
+    for (int j = 4; j < 12; ++j)
+        for (int i = 4; i < 9; ++i) // half the box's width
+            slice.at(i, j, 0) = 1;
+    io::write_image(dir / "slice.mhd", slice);
+    auto r = lseg("eval --json " + q(dir / "slice.mhd") + " " + q(vol) + " --slice 5", dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NEAR(parse_json(r)["dice"].get<double>(), 2.0 * 40 / (40 + 80), 1e-12);
+    r = lseg("eval " + q(dir / "slice.mhd") + " " + q(vol) + " --slice 1", dir); // the box starts at slice 2
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("slice 1"), std::string::npos) << r.err;
+    r = lseg("eval " + q(dir / "slice.mhd") + " " + q(vol) + " --slice 12", dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("outside"), std::string::npos) << r.err;
 }
 
 TEST(Lseg, BadInputNamesTheFileAndExitsTwo)

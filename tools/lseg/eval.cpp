@@ -2,6 +2,7 @@
 // reference, with the SLIVER07 score (docs/algorithms/metrics.md).
 #include "lseg/commands.h"
 
+#include "lobe/io/hdf5.h"
 #include "lobe/io/image_io.h"
 #include "lobe/seg/metrics.h"
 
@@ -13,6 +14,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace lobe::lseg {
 namespace {
@@ -20,25 +22,34 @@ namespace {
 struct EvalOptions {
     std::string seg, ref;
     bool json = false;
-    long long label = 0, ref_label = 0;
-    CLI::Option* label_opt = nullptr;
-    CLI::Option* ref_label_opt = nullptr;
+    std::vector<long long> label, ref_label; //!< empty = every non-zero voxel
+    int slice = -1;                          //!< compare axial slice K of any volume input
 };
+
+std::string label_text(const std::vector<long long>& labels)
+{
+    if (labels.empty())
+        return "non-zero";
+    std::string s = labels.size() == 1 ? "label " : "labels ";
+    for (std::size_t i = 0; i < labels.size(); ++i)
+        s += (i ? "," : "") + std::to_string(labels[i]);
+    return s;
+}
 
 // One input: its file, which voxels are the object, and the mask.
 struct Input {
     std::string path;
-    bool has_label = false;
-    long long label = 0;
+    std::vector<long long> labels;
     core::LabelImage3D mask;
     std::size_t voxels = 0;
 
-    std::string selection() const { return has_label ? "label " + std::to_string(label) : "non-zero"; }
+    std::string selection() const { return label_text(labels); }
 };
+
 
 // The object voxels of an image of any pixel type, compared in the file's own type (a uint8
 // conversion would saturate label 300 into 255). NaN is background.
-core::LabelImage3D object_mask(const core::AnyImage& image, bool has_label, long long label, std::size_t& voxels)
+core::LabelImage3D object_mask(const core::AnyImage& image, const std::vector<long long>& labels, std::size_t& voxels)
 {
     return std::visit(
         [&](const auto& im) {
@@ -46,10 +57,11 @@ core::LabelImage3D object_mask(const core::AnyImage& image, bool has_label, long
             static_cast<core::ImageGeometry&>(m) = im;
             m.data.resize(im.data.size());
             voxels = 0;
-            const auto want = static_cast<double>(label);
             for (std::size_t i = 0; i < im.data.size(); ++i) {
                 const auto v = static_cast<double>(im.data[i]);
-                const bool on = has_label ? v == want : (v != 0 && !std::isnan(v));
+                bool on = labels.empty() && v != 0 && !std::isnan(v);
+                for (long long l : labels)
+                    on = on || v == static_cast<double>(l);
                 m.data[i] = on ? 1 : 0;
                 voxels += on;
             }
@@ -58,16 +70,41 @@ core::LabelImage3D object_mask(const core::AnyImage& image, bool has_label, long
         image);
 }
 
-Input load(const std::string& path, bool has_label, long long label, tools::Timings& timings,
+// A container's label volume when it holds exactly one (lseg snake writes an image, the mask
+// and phi); otherwise any image format through libio.
+core::AnyImage read_input(const std::string& path)
+{
+    if (io::image_format(path) == io::ImageFormat::Hdf5) {
+        const io::Hdf5Reader h5(path);
+        if (h5.labels().size() == 1)
+            return h5.read_labels(h5.labels().front()).image;
+        return io::read_hdf5_image(path);
+    }
+    return io::read_image(path);
+}
+
+Input load(const std::string& path, const std::vector<long long>& labels, int slice, tools::Timings& timings,
            const tools::Progress& progress)
 {
-    Input in{path, has_label, label, {}, 0};
-    const core::AnyImage image = timings.time("read " + path, [&] { return io::read_image(path); });
+    Input in{path, labels, {}, 0};
+    core::AnyImage image = timings.time("read " + path, [&] { return read_input(path); });
     std::visit([&](const auto& im) { core::validate_geometry(im, path); }, image);
-    in.mask = object_mask(image, has_label, label, in.voxels);
+    if (slice >= 0)
+        image = std::visit(
+            [&](const auto& im) -> core::AnyImage {
+                if (im.size[2] == 1)
+                    return im; // already a slice
+                try {
+                    return core::axial_slice(im, slice);
+                } catch (const core::InvalidInputError& e) {
+                    throw core::InvalidInputError(path + ": " + e.what());
+                }
+            },
+            image);
+    in.mask = object_mask(image, labels, in.voxels);
     if (in.voxels == 0)
-        throw core::InvalidInputError(path + ": the object is empty (no voxel is " +
-                                      (has_label ? "label " + std::to_string(label) : "non-zero") +
+        throw core::InvalidInputError(path + ": the object is empty (no voxel is " + label_text(labels) +
+                                      (slice >= 0 ? " in slice " + std::to_string(slice) : "") +
                                       "); nothing to evaluate");
     progress.message("read " + path + ": " + std::to_string(in.voxels) + " object voxels (" + in.selection() + ")");
     return in;
@@ -122,7 +159,7 @@ nlohmann::ordered_json to_json(const Input& seg, const Input& ref, const seg::Se
 {
     const auto input = [](const Input& in, double ml, std::size_t border) {
         return nlohmann::ordered_json{{"file", in.path},
-                                      {"label", in.has_label ? nlohmann::ordered_json(in.label) : nullptr},
+                                      {"labels", in.labels.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(in.labels)},
                                       {"voxels", in.voxels},
                                       {"volume_ml", ml},
                                       {"border_voxels", border}};
@@ -157,13 +194,19 @@ Command add_eval(CLI::App& lseg)
     cmd->add_option("SEG", o->seg, "Segmentation (.mhd, .mha, .nii, .nii.gz, .h5 or a DICOM folder)")->required();
     cmd->add_option("REF", o->ref, "Reference segmentation on the same grid")->required();
     cmd->add_flag("--json", o->json, "Machine-readable output");
-    o->label_opt = cmd->add_option("--label", o->label, "The object is this value in SEG [default: every non-zero voxel]");
-    o->ref_label_opt =
-        cmd->add_option("--ref-label", o->ref_label, "The object is this value in REF [default: every non-zero voxel]");
+    cmd->add_option("--label", o->label, "The object is this value (or these, comma-separated) in SEG "
+                                         "[default: every non-zero voxel]")
+        ->delimiter(',');
+    cmd->add_option("--ref-label", o->ref_label, "The object is this value (or these, e.g. 1,2,3,4 for the "
+                                                 "phantom's liver with its vessels and tumours) in REF [default: every non-zero voxel]")
+        ->delimiter(',');
+    cmd->add_option("--slice", o->slice, "Compare axial slice K of every input that is a volume (e.g. a 2-D "
+                                         "lseg snake result against a reference volume)")
+        ->check(CLI::NonNegativeNumber);
     return {cmd, [o](const tools::Progress& progress, tools::RunRecord& record) -> int {
                 auto& timings = record.timings;
-                const Input seg = load(o->seg, o->label_opt->count() > 0, o->label, timings, progress);
-                const Input ref = load(o->ref, o->ref_label_opt->count() > 0, o->ref_label, timings, progress);
+                const Input seg = load(o->seg, o->label, o->slice, timings, progress);
+                const Input ref = load(o->ref, o->ref_label, o->slice, timings, progress);
                 if (!core::same_grid(seg.mask, ref.mask))
                     throw core::InvalidInputError(o->seg + " and " + o->ref +
                                                   " are not on the same grid: " + geometry_text(seg.mask) + " vs " +
