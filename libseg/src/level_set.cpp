@@ -42,6 +42,11 @@ constexpr Index kParallelGrid = Index(1) << 16;
 
 double sq(double v) { return v * v; }
 
+// Arithmetic type of the band update: float halves the latency of its division and square root;
+// φ is stored as float anyway.
+using Real = float;
+inline Real sqr(Real v) { return v * v; }
+
 struct Grid {
     std::array<int, 3> n{};
     std::array<Index, 3> stride{};
@@ -78,6 +83,11 @@ struct BandVoxel {
     Index idx;
     std::int32_t i, j, k;
     std::uint8_t nb; // kHas* and kEdge bits
+    // The static speeds at the voxel, copied here so that an update reads one contiguous record
+    // instead of five scattered images.
+    float curv;                // ε g
+    float press;               // P
+    std::array<float, 3> adv;  // V
 };
 
 // ---------------------------------------------------------------------------- validation
@@ -137,6 +147,15 @@ public:
             ih_[a] = 1.0 / g_.h[a];
         kappa_max_ = g_.dims / g_.hmin;
         dt_ = time_step();
+        for (std::size_t a = 0; a < 3; ++a)
+            rih_[a] = static_cast<Real>(ih_[a]);
+        rkappa_max_ = static_cast<Real>(kappa_max_);
+        rdt_ = static_cast<Real>(dt_);
+        for (int dk = -1; dk <= 1; ++dk)
+            for (int dj = -1; dj <= 1; ++dj)
+                for (int di = -1; di <= 1; ++di)
+                    if ((di || dj || dk) && (g_.active[2] || dk == 0))
+                        ring_.push_back(di + dj * g_.stride[1] + dk * g_.stride[2]);
     }
 
     double dt() const { return dt_; }
@@ -159,21 +178,24 @@ public:
     }
 
 private:
-    struct Site {
+    // A flat piece of the front, one per interface voxel: a point on it and its unit normal.
+    struct Patch {
+        std::array<float, 3> foot;   // [mm, along the index axes]
+        std::array<float, 3> normal; // zero if unknown (the patch is then a point)
+    };
+    // A voxel reached by the redistancing.
+    struct Visit {
         Index idx;
         std::int32_t i, j, k;
+        float d; // distance to the front [mm]
         bool inside;
-        float d;                   // distance to the zero level set [mm]
-        std::array<float, 3> foot; // a point of the zero level set [mm, index-aligned axes]
-        std::array<float, 3> normal; // the front's unit normal there (zero if unknown)
-        std::int32_t origin;         // the interface site whose foot point this is
     };
 
     double time_step() const;
     template <bool k3D>
     float updated(const BandVoxel& bv) const;
     bool interface_site(Index v, int i, int j, int k);
-    double patch_distance2(const std::array<double, 3>& x, const Site& s) const;
+    double patch_distance2(const std::array<double, 3>& x, const Patch& s, double bound) const;
     template <bool k3D>
     void step_band(Index& inside, bool& near);
     std::uint8_t neighbour_bits(int i, int j, int k) const;
@@ -200,6 +222,8 @@ private:
     std::array<double, 3> ih_{};
     double kappa_max_ = 0.0;
     double dt_ = 0.0;
+    std::array<Real, 3> rih_{}; // the same in the update's arithmetic type
+    Real rkappa_max_ = 0, rdt_ = 0;
 
     // Two full copies of φ: a step reads one and writes the band of the other, then they swap.
     // Voxels outside the band hold ±W in both.
@@ -207,10 +231,10 @@ private:
     float* cur_ = nullptr;
     float* nxt_ = nullptr;
     std::vector<std::uint8_t> flags_;
-    std::vector<std::int32_t> slot_; // voxel -> index in sites_ during redistancing; -1 none, -2 queued
-    std::vector<Site> sites_;
-    std::vector<Site> queued_;
-    std::vector<std::size_t> level_;
+    std::vector<std::int32_t> slot_; // during redistancing: voxel -> its patch; -1 not reached, -2 queued
+    std::vector<Patch> patches_;
+    std::vector<Visit> visits_; // in breadth-first order, the interface voxels first
+    std::vector<Index> ring_;   // offsets of the 8 (2-D) or 26 (3-D) neighbours
     std::vector<BandVoxel> band_;
     Index pending_changes_ = 0; // status changes of voxels that left the band since the last check
 };
@@ -251,17 +275,17 @@ float Evolver::updated(const BandVoxel& bv) const
 {
     const float* phi = cur_;
     const Index v = bv.idx;
-    auto p = [phi, v](Index off) { return double(phi[v + off]); };
+    auto p = [phi, v](Index off) { return Real(phi[v + off]); };
     const Index sy = g_.stride[1], sz = g_.stride[2];
     const std::uint8_t nb = bv.nb;
     const Index xm = nb & kHasXm ? -1 : 0, xp = nb & kHasXp ? 1 : 0;
     const Index ym = nb & kHasYm ? -sy : 0, yp = nb & kHasYp ? sy : 0;
-    const double ihx = ih_[0], ihy = ih_[1], ihz = ih_[2];
-    const double c = p(0);
-    const double dmx = (c - p(xm)) * ihx, dpx = (p(xp) - c) * ihx;
-    const double dmy = (c - p(ym)) * ihy, dpy = (p(yp) - c) * ihy;
+    const Real ihx = rih_[0], ihy = rih_[1], ihz = rih_[2];
+    const Real c = p(0);
+    const Real dmx = (c - p(xm)) * ihx, dpx = (p(xp) - c) * ihx;
+    const Real dmy = (c - p(ym)) * ihy, dpy = (p(yp) - c) * ihy;
     Index zm = 0, zp = 0;
-    double dmz = 0, dpz = 0;
+    Real dmz = 0, dpz = 0;
     if constexpr (k3D) {
         zm = nb & kHasZm ? -sz : 0;
         zp = nb & kHasZp ? sz : 0;
@@ -269,66 +293,66 @@ float Evolver::updated(const BandVoxel& bv) const
         dpz = (p(zp) - c) * ihz;
     }
 
-    double rate = 0.0;
+    Real rate = Real(0);
     if (curv_) {
         // κ = div(∇φ/|∇φ|) (eq. 4.30; in 3-D the sum of the principal curvatures), central differences.
-        const double fx = 0.5 * (dmx + dpx), fy = 0.5 * (dmy + dpy);
-        const double fxx = (dpx - dmx) * ihx, fyy = (dpy - dmy) * ihy;
-        const double fxy = (p(xp + yp) - p(xp + ym) - p(xm + yp) + p(xm + ym)) * 0.25 * ihx * ihy;
-        double num = 0, g2 = 0;
+        const Real fx = Real(0.5) * (dmx + dpx), fy = Real(0.5) * (dmy + dpy);
+        const Real fxx = (dpx - dmx) * ihx, fyy = (dpy - dmy) * ihy;
+        const Real fxy = (p(xp + yp) - p(xp + ym) - p(xm + yp) + p(xm + ym)) * Real(0.25) * ihx * ihy;
+        Real num = 0, g2 = 0;
         if constexpr (k3D) {
-            const double fz = 0.5 * (dmz + dpz), fzz = (dpz - dmz) * ihz;
-            const double fxz = (p(xp + zp) - p(xp + zm) - p(xm + zp) + p(xm + zm)) * 0.25 * ihx * ihz;
-            const double fyz = (p(yp + zp) - p(yp + zm) - p(ym + zp) + p(ym + zm)) * 0.25 * ihy * ihz;
+            const Real fz = Real(0.5) * (dmz + dpz), fzz = (dpz - dmz) * ihz;
+            const Real fxz = (p(xp + zp) - p(xp + zm) - p(xm + zp) + p(xm + zm)) * Real(0.25) * ihx * ihz;
+            const Real fyz = (p(yp + zp) - p(yp + zm) - p(ym + zp) + p(ym + zm)) * Real(0.25) * ihy * ihz;
             num = fxx * (fy * fy + fz * fz) + fyy * (fx * fx + fz * fz) + fzz * (fx * fx + fy * fy) -
-                  2.0 * (fx * fy * fxy + fx * fz * fxz + fy * fz * fyz);
+                  Real(2) * (fx * fy * fxy + fx * fz * fxz + fy * fz * fyz);
             g2 = fx * fx + fy * fy + fz * fz;
         } else {
-            num = fxx * fy * fy - 2.0 * fx * fy * fxy + fyy * fx * fx;
+            num = fxx * fy * fy - Real(2) * fx * fy * fxy + fyy * fx * fx;
             g2 = fx * fx + fy * fy;
         }
-        if (g2 > kMinGrad2) {
+        if (g2 > Real(kMinGrad2)) {
             // κ|∇φ| = num / |∇φ|^2, with κ clamped to the grid's resolvable curvature so that a
             // near-flat φ cannot blow up (the sqrt is only needed when the clamp acts).
-            double kg = num / g2;
-            if (num * num > kappa_max_ * kappa_max_ * g2 * g2 * g2)
-                kg = std::copysign(kappa_max_ * std::sqrt(g2), num);
-            rate += eps_ * (stop_ ? double(stop_[v]) : 1.0) * kg;
+            Real kg = num / g2;
+            if (num * num > rkappa_max_ * rkappa_max_ * g2 * g2 * g2)
+                kg = std::copysign(rkappa_max_ * std::sqrt(g2), num);
+            rate += Real(bv.curv) * kg;
         }
     }
     if (press_) {
         // Osher-Sethian / Godunov: P > 0 moves the front outwards (φ decreases), taking the
         // one-sided differences from the side the front comes from.
-        const double pr = press_[v];
-        if (pr > 0.0) {
-            double s = sq(std::max(dmx, 0.0)) + sq(std::min(dpx, 0.0)) + sq(std::max(dmy, 0.0)) + sq(std::min(dpy, 0.0));
+        const Real pr = bv.press;
+        if (pr > Real(0)) {
+            Real s = sqr(std::max(dmx, Real(0))) + sqr(std::min(dpx, Real(0))) + sqr(std::max(dmy, Real(0))) + sqr(std::min(dpy, Real(0)));
             if constexpr (k3D)
-                s += sq(std::max(dmz, 0.0)) + sq(std::min(dpz, 0.0));
+                s += sqr(std::max(dmz, Real(0))) + sqr(std::min(dpz, Real(0)));
             rate -= pr * std::sqrt(s);
-        } else if (pr < 0.0) {
-            double s = sq(std::min(dmx, 0.0)) + sq(std::max(dpx, 0.0)) + sq(std::min(dmy, 0.0)) + sq(std::max(dpy, 0.0));
+        } else if (pr < Real(0)) {
+            Real s = sqr(std::min(dmx, Real(0))) + sqr(std::max(dpx, Real(0))) + sqr(std::min(dmy, Real(0))) + sqr(std::max(dpy, Real(0)));
             if constexpr (k3D)
-                s += sq(std::min(dmz, 0.0)) + sq(std::max(dpz, 0.0));
+                s += sqr(std::min(dmz, Real(0))) + sqr(std::max(dpz, Real(0)));
             rate -= pr * std::sqrt(s);
         }
     }
     if (has_adv_) {
         // First-order upwind (eq. 4.32): the front moves along V.
         if (adv_[0]) {
-            const double u = adv_[0][v];
-            rate -= u * (u > 0.0 ? dmx : dpx);
+            const Real u = bv.adv[0];
+            rate -= u * (u > Real(0) ? dmx : dpx);
         }
         if (adv_[1]) {
-            const double u = adv_[1][v];
-            rate -= u * (u > 0.0 ? dmy : dpy);
+            const Real u = bv.adv[1];
+            rate -= u * (u > Real(0) ? dmy : dpy);
         }
         if constexpr (k3D)
             if (adv_[2]) {
-                const double u = adv_[2][v];
-                rate -= u * (u > 0.0 ? dmz : dpz);
+                const Real u = bv.adv[2];
+                rate -= u * (u > Real(0) ? dmz : dpz);
             }
     }
-    return static_cast<float>(c + dt_ * rate);
+    return static_cast<float>(c + rdt_ * rate);
 }
 
 template <bool k3D>
@@ -456,40 +480,44 @@ bool Evolver::interface_site(Index v, int i, int j, int k)
         return false;
     const double d = std::abs(f) / std::sqrt(big2); // big2 > 0: the signs differ across an axis
     const double gn = std::sqrt(sq(grad[0]) + sq(grad[1]) + sq(grad[2]));
-    const auto id = static_cast<std::int32_t>(sites_.size());
-    Site s{v, i, j, k, in, static_cast<float>(d), {}, {}, id};
+    const auto id = static_cast<std::int32_t>(patches_.size());
+    Patch patch{};
     const std::array<double, 3> x{i * g_.h[0], j * g_.h[1], k * g_.h[2]};
     for (std::size_t a = 0; a < 3; ++a) {
         const double n = gn > 0.0 ? grad[a] / gn : 0.0;
-        s.normal[a] = static_cast<float>(n);
-        s.foot[a] = static_cast<float>(x[a] - (in ? -d : d) * n);
+        patch.normal[a] = static_cast<float>(n);
+        patch.foot[a] = static_cast<float>(x[a] - (in ? -d : d) * n);
     }
+    patches_.push_back(patch);
+    visits_.push_back({v, i, j, k, static_cast<float>(d), in});
     slot_[static_cast<std::size_t>(v)] = id;
-    sites_.push_back(s);
     return true;
 }
 
 // Squared distance from x to the front as seen from a site: the front is a flat patch of radius `patch_`
 // around the foot point, perpendicular to the site's normal. Far better than the distance to the
 // foot point itself, which overestimates by up to s^2/(8d) for foot points s apart.
-double Evolver::patch_distance2(const std::array<double, 3>& x, const Site& s) const
+double Evolver::patch_distance2(const std::array<double, 3>& x, const Patch& s, double bound) const
 {
     const std::array<double, 3> r{x[0] - double(s.foot[0]), x[1] - double(s.foot[1]), x[2] - double(s.foot[2])};
-    const double r2 = sq(r[0]) + sq(r[1]) + sq(r[2]);
     const double dn = r[0] * double(s.normal[0]) + r[1] * double(s.normal[1]) + r[2] * double(s.normal[2]);
-    const double lateral2 = std::max(r2 - dn * dn, 0.0);
+    const double dn2 = dn * dn;
+    if (dn2 >= bound) // the distance is at least |dn|: cannot beat the best so far
+        return dn2;
+    const double lateral2 = std::max(sq(r[0]) + sq(r[1]) + sq(r[2]) - dn2, 0.0);
     if (lateral2 <= patch_ * patch_)
-        return dn * dn;
-    return dn * dn + sq(std::sqrt(lateral2) - patch_);
+        return dn2;
+    return dn2 + sq(std::sqrt(lateral2) - patch_);
 }
 
-// Sub-voxel redistancing restricted to the band: interface voxels get the local distance above;
-// the sites (foot point and normal) then spread outwards breadth-first, each voxel taking the
-// nearest front patch among its already reached face neighbours', stopping beyond the band width.
-// Cost O(band voxels), not O(grid) as a full distance transform; the sign of every voxel is kept.
+// Sub-voxel redistancing restricted to the band: interface voxels get the local distance above
+// and define the front patches; the patches then spread outwards breadth-first, each voxel taking
+// the nearest patch among its already reached neighbours', stopping beyond the band width. Cost
+// O(band voxels), not O(grid) as a full distance transform; the sign of every voxel is kept.
 bool Evolver::redistance(bool initial)
 {
-    sites_.clear();
+    patches_.clear();
+    visits_.clear();
     if (initial) {
         for (int k = 0; k < g_.n[2]; ++k)
             for (int j = 0; j < g_.n[1]; ++j)
@@ -499,18 +527,16 @@ bool Evolver::redistance(bool initial)
         for (const BandVoxel& bv : band_)
             interface_site(bv.idx, bv.i, bv.j, bv.k);
     }
-    const bool front = !sites_.empty();
+    const bool front = !visits_.empty();
 
-    level_.resize(sites_.size());
-    for (std::size_t s = 0; s < level_.size(); ++s)
-        level_[s] = s;
-    while (!level_.empty()) {
-        queued_.clear();
-        for (std::size_t s : level_) {
-            const Site site = sites_[s];
-            if (double(site.d) > width_)
+    const int k0 = g_.active[2] ? -1 : 0, k1 = g_.active[2] ? 1 : 0;
+    std::size_t begin = 0, end = visits_.size();
+    while (begin < end) {
+        for (std::size_t t = begin; t < end; ++t) {
+            const Visit from = visits_[t];
+            if (double(from.d) > width_)
                 continue;
-            const std::array<int, 3> ijk{site.i, site.j, site.k};
+            const std::array<int, 3> ijk{from.i, from.j, from.k};
             for (std::size_t a = 0; a < 3; ++a) {
                 if (!g_.active[a])
                     continue;
@@ -518,56 +544,57 @@ bool Evolver::redistance(bool initial)
                     const int na = ijk[a] + sd;
                     if (na < 0 || na >= g_.n[a])
                         continue;
-                    const Index w = site.idx + sd * g_.stride[a];
+                    const Index w = from.idx + sd * g_.stride[a];
                     auto& sl = slot_[static_cast<std::size_t>(w)];
                     if (sl != -1)
                         continue;
                     sl = -2;
                     std::array<int, 3> q = ijk;
                     q[a] = na;
-                    queued_.push_back({w, q[0], q[1], q[2], cur_[w] < 0.f, 0.f, {}, {}, -1});
+                    visits_.push_back({w, q[0], q[1], q[2], 0.f, cur_[w] < 0.f});
                 }
             }
         }
-        level_.clear();
-        for (Site& q : queued_) {
-            const std::array<int, 3> ijk{q.i, q.j, q.k};
+        begin = end;
+        end = visits_.size();
+        for (std::size_t t = begin; t < end; ++t) {
+            Visit& q = visits_[t];
             const std::array<double, 3> x{q.i * g_.h[0], q.j * g_.h[1], q.k * g_.h[2]};
-            double best = std::numeric_limits<double>::infinity();
-            const Site* from = nullptr;
             // Candidates from the whole 3x3(x3) neighbourhood: with face neighbours only, the
             // nearest patch often fails to reach voxels a few layers away (Danielsson's error).
-            // Neighbours mostly carry the same patch: each patch is evaluated once.
+            // Neighbours mostly share a patch: each is evaluated once.
             std::int32_t tried[27];
             int n_tried = 0;
-            const int k0 = g_.active[2] ? -1 : 0, k1 = g_.active[2] ? 1 : 0;
-            for (int dk = k0; dk <= k1; ++dk)
-                for (int dj = -1; dj <= 1; ++dj)
-                    for (int di = -1; di <= 1; ++di) {
-                        const int ni = ijk[0] + di, nj = ijk[1] + dj, nk = ijk[2] + dk;
-                        if (ni < 0 || nj < 0 || nk < 0 || ni >= g_.n[0] || nj >= g_.n[1] || nk >= g_.n[2])
-                            continue;
-                        const std::int32_t su =
-                            slot_[static_cast<std::size_t>(q.idx + di + dj * g_.stride[1] + dk * g_.stride[2])];
-                        if (su < 0)
-                            continue;
-                        const Site& cand = sites_[static_cast<std::size_t>(su)];
-                        if (std::find(tried, tried + n_tried, cand.origin) != tried + n_tried)
-                            continue;
-                        tried[n_tried++] = cand.origin;
-                        const double d2 = patch_distance2(x, cand);
-                        if (d2 < best) {
-                            best = d2;
-                            from = &cand;
+            double best = std::numeric_limits<double>::infinity();
+            std::int32_t best_patch = -1;
+            auto consider = [&](std::int32_t pt) {
+                if (pt < 0 || std::find(tried, tried + n_tried, pt) != tried + n_tried)
+                    return;
+                tried[n_tried++] = pt;
+                const double d2 = patch_distance2(x, patches_[static_cast<std::size_t>(pt)], best);
+                if (d2 < best) {
+                    best = d2;
+                    best_patch = pt;
+                }
+            };
+            const bool interior = q.i > 0 && q.j > 0 && q.i < g_.n[0] - 1 && q.j < g_.n[1] - 1 &&
+                                  (!g_.active[2] || (q.k > 0 && q.k < g_.n[2] - 1));
+            if (interior) {
+                for (const Index off : ring_)
+                    consider(slot_[static_cast<std::size_t>(q.idx + off)]);
+            } else {
+                for (int dk = k0; dk <= k1; ++dk)
+                    for (int dj = -1; dj <= 1; ++dj)
+                        for (int di = -1; di <= 1; ++di) {
+                            const int ni = q.i + di, nj = q.j + dj, nk = q.k + dk;
+                            if (ni < 0 || nj < 0 || nk < 0 || ni >= g_.n[0] || nj >= g_.n[1] || nk >= g_.n[2])
+                                continue;
+                            consider(slot_[static_cast<std::size_t>(q.idx + di + dj * g_.stride[1] + dk * g_.stride[2])]);
                         }
-                    }
+            }
+            // best_patch >= 0: the voxel that queued q is a reached neighbour
             q.d = static_cast<float>(std::sqrt(best));
-            q.foot = from->foot; // every queued voxel has a reached neighbour: the one that queued it
-            q.normal = from->normal;
-            q.origin = from->origin;
-            slot_[static_cast<std::size_t>(q.idx)] = static_cast<std::int32_t>(sites_.size());
-            level_.push_back(sites_.size());
-            sites_.push_back(q);
+            slot_[static_cast<std::size_t>(q.idx)] = best_patch;
         }
     }
 
@@ -583,31 +610,40 @@ bool Evolver::redistance(bool initial)
             a[v] = in ? -W : W;
         }
     } else {
+        for (const BandVoxel& bv : band_)
+            flags_[static_cast<std::size_t>(bv.idx)] &= static_cast<std::uint8_t>(~kInBand);
+    }
+    std::vector<BandVoxel> fresh;
+    fresh.reserve(visits_.size());
+    for (const Visit& q : visits_) {
+        const auto v = static_cast<std::size_t>(q.idx);
+        slot_[v] = -1;
+        if (double(q.d) > width_) {
+            a[v] = b[v] = q.inside ? -W : W;
+            continue;
+        }
+        a[v] = b[v] = q.inside ? -std::max(q.d, tiny) : q.d;
+        flags_[v] |= kInBand;
+        BandVoxel bv{q.idx, q.i, q.j, q.k, neighbour_bits(q.i, q.j, q.k), 0.f, 0.f, {0.f, 0.f, 0.f}};
+        bv.curv = static_cast<float>(eps_ * (stop_ ? double(stop_[v]) : 1.0));
+        bv.press = press_ ? press_[v] : 0.f;
+        for (std::size_t ax = 0; ax < 3; ++ax)
+            bv.adv[ax] = adv_[ax] ? adv_[ax][v] : 0.f;
+        fresh.push_back(bv);
+    }
+    if (initial) {
+        std::copy(a, a + g_.count, b);
+    } else {
         // Voxels leaving the band freeze: account their status change now, clamp them to ±W.
         for (const BandVoxel& bv : band_) {
             const auto v = static_cast<std::size_t>(bv.idx);
-            const std::int32_t s = slot_[v];
-            if (s < 0 || double(sites_[static_cast<std::size_t>(s)].d) > width_) {
+            if (!(flags_[v] & kInBand)) {
                 account(bv.idx);
                 a[v] = b[v] = a[v] < 0.f ? -W : W;
             }
-            flags_[v] &= static_cast<std::uint8_t>(~kInBand);
         }
     }
-    band_.clear();
-    for (const Site& s : sites_) {
-        const auto v = static_cast<std::size_t>(s.idx);
-        slot_[v] = -1;
-        if (double(s.d) > width_) {
-            a[v] = b[v] = s.inside ? -W : W;
-            continue;
-        }
-        a[v] = b[v] = s.inside ? -std::max(s.d, tiny) : s.d;
-        flags_[v] |= kInBand;
-        band_.push_back({s.idx, s.i, s.j, s.k, neighbour_bits(s.i, s.j, s.k)});
-    }
-    if (initial)
-        std::copy(a, a + g_.count, b);
+    band_.swap(fresh);
     const Index sy = g_.stride[1], sz = g_.stride[2];
     auto out = [this](Index w) { return !(flags_[static_cast<std::size_t>(w)] & kInBand); };
     for (BandVoxel& bv : band_) {
