@@ -5,9 +5,11 @@
 #include "lobe/seg/distance_transform.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <string>
 #include <vector>
@@ -42,12 +44,18 @@ constexpr Index kParallelLevel = Index(1) << 12;
 // Same reasoning for the passes over the whole grid.
 constexpr Index kParallelGrid = Index(1) << 16;
 
-double sq(double v) { return v * v; }
+double sq(double v)
+{
+    return v * v;
+}
 
 // Arithmetic type of the band update: float halves the latency of its division and square root;
 // φ is stored as float anyway.
 using Real = float;
-inline Real sqr(Real v) { return v * v; }
+inline Real sqr(Real v)
+{
+    return v * v;
+}
 
 struct Grid {
     std::array<int, 3> n{};
@@ -87,9 +95,9 @@ struct BandVoxel {
     std::uint8_t nb; // kHas* and kEdge bits
     // The static speeds at the voxel, copied here so that an update reads one contiguous record
     // instead of five scattered images.
-    float curv;                // ε g
-    float press;               // P
-    std::array<float, 3> adv;  // V
+    float curv;               // ε g
+    float press;              // P
+    std::array<float, 3> adv; // V
 };
 
 // ---------------------------------------------------------------------------- validation
@@ -130,7 +138,7 @@ void check_params(const LevelSetParams& p)
 // ---------------------------------------------------------------------------- the evolution
 
 class Evolver {
-public:
+  public:
     Evolver(ImageF& phi, const SpeedTerms& terms, const LevelSetParams& params)
         : g_(make_grid(phi.geometry())), phi_(phi), params_(params), width_(params.band_voxels * g_.hmax),
           patch_(0.5 * g_.hmax), other_(g_.count), flags_(g_.count, 0), slot_(g_.count, -1)
@@ -181,7 +189,7 @@ public:
             std::copy(cur_, cur_ + g_.count, phi_.data.begin());
     }
 
-private:
+  private:
     // A flat piece of the front, one per interface voxel: a point on it and its unit normal.
     struct Patch {
         std::array<float, 3> foot;   // [mm, along the index axes]
@@ -197,13 +205,11 @@ private:
     };
 
     double time_step() const;
-    template <bool k3D>
-    float updated(const BandVoxel& bv) const;
+    template <bool k3D> float updated(const BandVoxel& bv) const;
     bool interface_site(Index v, int i, int j, int k);
     double patch_distance2(const std::array<double, 3>& x, const Patch& s, double bound) const;
     void nearest_patch(Visit& q) const;
-    template <bool k3D>
-    void step_band(Index& inside, bool& near);
+    template <bool k3D> void step_band(Index& inside, bool& near);
     std::uint8_t neighbour_bits(int i, int j, int k) const;
     bool any_sign(bool inside) const;
     void account(Index v)
@@ -243,7 +249,7 @@ private:
     std::vector<Index> ring_;   // offsets of the 8 (2-D) or 26 (3-D) neighbours
     std::vector<BandVoxel> band_;
     std::vector<BandVoxel> spare_band_; // the next band is built here, then swapped in
-    Index pending_changes_ = 0; // status changes of voxels that left the band since the last check
+    Index pending_changes_ = 0;         // status changes of voxels that left the band since the last check
 };
 
 // Δt = cfl / max over the grid of the sum of the terms' explicit stability rates: advection
@@ -277,8 +283,7 @@ double Evolver::time_step() const
 
 // One voxel of eq. 4.29: φ + Δt (ε g κ|∇φ| - P|∇φ|_Godunov - V·∇φ_upwind). The grid border
 // replicates the edge voxel (zero normal derivative), so a front may touch the border.
-template <bool k3D>
-float Evolver::updated(const BandVoxel& bv) const
+template <bool k3D> float Evolver::updated(const BandVoxel& bv) const
 {
     const float* phi = cur_;
     const Index v = bv.idx;
@@ -332,12 +337,14 @@ float Evolver::updated(const BandVoxel& bv) const
         // one-sided differences from the side the front comes from.
         const Real pr = bv.press;
         if (pr > Real(0)) {
-            Real s = sqr(std::max(dmx, Real(0))) + sqr(std::min(dpx, Real(0))) + sqr(std::max(dmy, Real(0))) + sqr(std::min(dpy, Real(0)));
+            Real s = sqr(std::max(dmx, Real(0))) + sqr(std::min(dpx, Real(0))) + sqr(std::max(dmy, Real(0))) +
+                     sqr(std::min(dpy, Real(0)));
             if constexpr (k3D)
                 s += sqr(std::max(dmz, Real(0))) + sqr(std::min(dpz, Real(0)));
             rate -= pr * std::sqrt(s);
         } else if (pr < Real(0)) {
-            Real s = sqr(std::min(dmx, Real(0))) + sqr(std::max(dpx, Real(0))) + sqr(std::min(dmy, Real(0))) + sqr(std::max(dpy, Real(0)));
+            Real s = sqr(std::min(dmx, Real(0))) + sqr(std::max(dpx, Real(0))) + sqr(std::min(dmy, Real(0))) +
+                     sqr(std::max(dpy, Real(0)));
             if constexpr (k3D)
                 s += sqr(std::min(dmz, Real(0))) + sqr(std::max(dpz, Real(0)));
             rate -= pr * std::sqrt(s);
@@ -362,8 +369,7 @@ float Evolver::updated(const BandVoxel& bv) const
     return static_cast<float>(c + rdt_ * rate);
 }
 
-template <bool k3D>
-void Evolver::step_band(Index& inside, bool& near)
+template <bool k3D> void Evolver::step_band(Index& inside, bool& near)
 {
     const auto nb = static_cast<Index>(band_.size());
     const double trigger = g_.hmax; // the front within one voxel of a band-edge voxel
@@ -501,8 +507,8 @@ bool Evolver::interface_site(Index v, int i, int j, int k)
     return true;
 }
 
-// Squared distance from x to the front as seen from a site: the front is a flat patch of radius `patch_`
-// around the foot point, perpendicular to the site's normal. Far better than the distance to the
+// Squared distance from x to the front as seen from a patch: a flat disc of radius `patch_` around
+// the foot point, perpendicular to the normal. Far better than the distance to the
 // foot point itself, which overestimates by up to s^2/(8d) for foot points s apart.
 double Evolver::patch_distance2(const std::array<double, 3>& x, const Patch& s, double bound) const
 {
@@ -685,8 +691,7 @@ LevelSetResult evolve_level_set(const ImageF& phi0, const SpeedTerms& terms, con
     if (terms.advection)
         for (std::size_t a = 0; a < 3; ++a)
             if (phi0.size[a] > 1) // a 2-D field's z component is ignored
-                check_image(terms.advection->c[a], phi0.geometry(), "advection component " + std::to_string(a),
-                            false);
+                check_image(terms.advection->c[a], phi0.geometry(), "advection component " + std::to_string(a), false);
 
     LevelSetResult r;
     r.phi = phi0;
@@ -747,8 +752,7 @@ ImageF level_set_from_seeds(const core::ImageGeometry& grid, const std::vector<c
         for (int a = 0; a < 3; ++a)
             if (!std::isfinite(s[a]) || s[a] < -0.5 || s[a] >= grid.size[static_cast<std::size_t>(a)] - 0.5)
                 throw InvalidInputError("level_set_from_seeds: seed (" + std::to_string(s.x) + ", " +
-                                        std::to_string(s.y) + ", " + std::to_string(s.z) +
-                                        ") lies outside the grid");
+                                        std::to_string(s.y) + ", " + std::to_string(s.z) + ") lies outside the grid");
     ImageF phi(grid, 0.f);
     const auto& h = grid.spacing;
     const int nx = grid.size[0], ny = grid.size[1];
@@ -765,8 +769,10 @@ ImageF level_set_from_seeds(const core::ImageGeometry& grid, const std::vector<c
     // A ball smaller than a voxel may miss every voxel centre: its nearest voxel is made inside so
     // that every seed starts a contour.
     for (const core::Vec3& s : seeds) {
-        const int i = int(std::lround(s.x)), j = int(std::lround(s.y)), k = int(std::lround(s.z));
-        float& f = phi.at(i, j, k);
+        std::array<int, 3> ijk{};
+        for (std::size_t a = 0; a < 3; ++a) // s[a] = -0.5 rounds to -1
+            ijk[a] = std::clamp(int(std::lround(s[int(a)])), 0, grid.size[a] - 1);
+        float& f = phi.at(ijk[0], ijk[1], ijk[2]);
         f = std::min(f, static_cast<float>(-1e-3 * std::min({h[0], h[1], h[2]})));
     }
     return phi;

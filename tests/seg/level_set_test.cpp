@@ -524,6 +524,9 @@ TEST(LevelSet, LevelSetFromSeeds)
     // a ball smaller than a voxel still marks its seed's voxel
     const auto tiny = seg::level_set_from_seeds(g, {{6.4, 10.0, 0.0}}, 0.1);
     EXPECT_LT(tiny.at(6, 10, 0), 0.f);
+    // the grid spans [-0.5, size - 0.5) voxels along each axis: a seed on its lower face is inside
+    const auto corner = seg::level_set_from_seeds(g, {{-0.5, 10.0, -0.5}}, 0.1);
+    EXPECT_LT(corner.at(0, 10, 0), 0.f);
 
     EXPECT_LOBE_ERROR(core::InvalidInputError, seg::level_set_from_seeds(g, {{30.0, 10.0, 0.0}}, 2.0), "outside");
     EXPECT_LOBE_ERROR(core::InvalidInputError, seg::level_set_from_seeds(g, {{3.0, -1.0, 0.0}}, 2.0), "outside");
