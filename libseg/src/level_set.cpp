@@ -205,7 +205,6 @@ class Evolver {
     };
 
     double time_step() const;
-    template <bool k3D> float updated(const BandVoxel& bv) const;
     bool interface_site(Index v, int i, int j, int k);
     double patch_distance2(const std::array<double, 3>& x, const Patch& s, double bound) const;
     void nearest_patch(Visit& q) const;
@@ -281,32 +280,41 @@ double Evolver::time_step() const
     return worst > 0.0 ? params_.cfl / worst : params_.cfl * g_.hmin;
 }
 
+// The constants of one band update, as locals: members would be reloaded after every store
+// through the float output pointer, which may alias them.
+struct Kernel {
+    const float* phi;
+    Index sy, sz;
+    Real ihx, ihy, ihz;
+    Real kappa_max, dt;
+    bool curv, press, adv;
+};
+
 // One voxel of eq. 4.29: φ + Δt (ε g κ|∇φ| - P|∇φ|_Godunov - V·∇φ_upwind). The grid border
 // replicates the edge voxel (zero normal derivative), so a front may touch the border.
-template <bool k3D> float Evolver::updated(const BandVoxel& bv) const
+template <bool k3D> inline float updated(const Kernel& k, const BandVoxel& bv)
 {
-    const float* phi = cur_;
+    const float* phi = k.phi;
     const Index v = bv.idx;
     auto p = [phi, v](Index off) { return Real(phi[v + off]); };
-    const Index sy = g_.stride[1], sz = g_.stride[2];
     const std::uint8_t nb = bv.nb;
     const Index xm = nb & kHasXm ? -1 : 0, xp = nb & kHasXp ? 1 : 0;
-    const Index ym = nb & kHasYm ? -sy : 0, yp = nb & kHasYp ? sy : 0;
-    const Real ihx = rih_[0], ihy = rih_[1], ihz = rih_[2];
+    const Index ym = nb & kHasYm ? -k.sy : 0, yp = nb & kHasYp ? k.sy : 0;
+    const Real ihx = k.ihx, ihy = k.ihy, ihz = k.ihz;
     const Real c = p(0);
     const Real dmx = (c - p(xm)) * ihx, dpx = (p(xp) - c) * ihx;
     const Real dmy = (c - p(ym)) * ihy, dpy = (p(yp) - c) * ihy;
     Index zm = 0, zp = 0;
     Real dmz = 0, dpz = 0;
     if constexpr (k3D) {
-        zm = nb & kHasZm ? -sz : 0;
-        zp = nb & kHasZp ? sz : 0;
+        zm = nb & kHasZm ? -k.sz : 0;
+        zp = nb & kHasZp ? k.sz : 0;
         dmz = (c - p(zm)) * ihz;
         dpz = (p(zp) - c) * ihz;
     }
 
     Real rate = Real(0);
-    if (curv_) {
+    if (k.curv) {
         // κ = div(∇φ/|∇φ|) (eq. 4.30; in 3-D the sum of the principal curvatures), central differences.
         const Real fx = Real(0.5) * (dmx + dpx), fy = Real(0.5) * (dmy + dpy);
         const Real fxx = (dpx - dmx) * ihx, fyy = (dpy - dmy) * ihy;
@@ -327,12 +335,12 @@ template <bool k3D> float Evolver::updated(const BandVoxel& bv) const
             // κ|∇φ| = num / |∇φ|^2, with κ clamped to the grid's resolvable curvature so that a
             // near-flat φ cannot blow up (the sqrt is only needed when the clamp acts).
             Real kg = num / g2;
-            if (num * num > rkappa_max_ * rkappa_max_ * g2 * g2 * g2)
-                kg = std::copysign(rkappa_max_ * std::sqrt(g2), num);
+            if (num * num > k.kappa_max * k.kappa_max * g2 * g2 * g2)
+                kg = std::copysign(k.kappa_max * std::sqrt(g2), num);
             rate += Real(bv.curv) * kg;
         }
     }
-    if (press_) {
+    if (k.press) {
         // Osher-Sethian / Godunov: P > 0 moves the front outwards (φ decreases), taking the
         // one-sided differences from the side the front comes from.
         const Real pr = bv.press;
@@ -350,36 +358,32 @@ template <bool k3D> float Evolver::updated(const BandVoxel& bv) const
             rate -= pr * std::sqrt(s);
         }
     }
-    if (has_adv_) {
-        // First-order upwind (eq. 4.32): the front moves along V.
-        if (adv_[0]) {
-            const Real u = bv.adv[0];
-            rate -= u * (u > Real(0) ? dmx : dpx);
+    if (k.adv) {
+        // First-order upwind (eq. 4.32): the front moves along V (absent components are 0).
+        const Real u = bv.adv[0], w = bv.adv[1];
+        rate -= u * (u > Real(0) ? dmx : dpx) + w * (w > Real(0) ? dmy : dpy);
+        if constexpr (k3D) {
+            const Real z = bv.adv[2];
+            rate -= z * (z > Real(0) ? dmz : dpz);
         }
-        if (adv_[1]) {
-            const Real u = bv.adv[1];
-            rate -= u * (u > Real(0) ? dmy : dpy);
-        }
-        if constexpr (k3D)
-            if (adv_[2]) {
-                const Real u = bv.adv[2];
-                rate -= u * (u > Real(0) ? dmz : dpz);
-            }
     }
-    return static_cast<float>(c + rdt_ * rate);
+    return static_cast<float>(c + k.dt * rate);
 }
 
 template <bool k3D> void Evolver::step_band(Index& inside, bool& near)
 {
     const auto nb = static_cast<Index>(band_.size());
     const double trigger = g_.hmax; // the front within one voxel of a band-edge voxel
+    const Kernel kern{cur_,        g_.stride[1], g_.stride[2], rih_[0],           rih_[1], rih_[2],
+                      rkappa_max_, rdt_,         curv_,        press_ != nullptr, has_adv_};
+    const BandVoxel* band = band_.data();
     float* out = nxt_;
     Index in = 0;
     bool nr = false;
 #pragma omp parallel for schedule(static) reduction(+ : in) reduction(|| : nr) if (nb >= kParallelBand)
     for (Index b = 0; b < nb; ++b) {
-        const BandVoxel& bv = band_[static_cast<std::size_t>(b)];
-        const float f = updated<k3D>(bv);
+        const BandVoxel& bv = band[b];
+        const float f = updated<k3D>(kern, bv);
         out[bv.idx] = f;
         in += f < 0.f;
         nr = nr || ((bv.nb & kEdge) && std::abs(double(f)) <= trigger);
