@@ -308,6 +308,39 @@ TEST(Gvf, DefaultIterationsAndEarlyStop)
     EXPECT_EQ(r.last_change, 0.0);
 }
 
+TEST(Gvf, EarlyStopEqualsTheSamePlainStepsOnAThreadedGrid)
+{
+    // 256 x 256 (65536 voxels) runs on the OpenMP team. The steps are cut into chunks that any
+    // thread may take, but every chunk's arithmetic is fixed, so the result is bit-identical
+    // however the chunks were shared out: stopping at the first step whose max |Δv| < 1e-3
+    // must give exactly the field of that many plain steps, and the step before must still
+    // have changed by >= 1e-3. The same holds for a band covering the whole grid.
+    const core::ImageF f = disc_edge_map(256, 128.0, 70.0);
+    GvfParams p;
+    p.iterations = 400;
+    p.tolerance = 1e-3;
+    const seg::GvfResult stopped = seg::gradient_vector_flow(f, p);
+    ASSERT_GT(stopped.iterations, 1);
+    ASSERT_LT(stopped.iterations, 400);
+    EXPECT_LT(stopped.last_change, 1e-3);
+    p.tolerance = 0.0;
+    p.iterations = stopped.iterations;
+    const seg::GvfResult plain = seg::gradient_vector_flow(f, p);
+    for (std::size_t c = 0; c < 2; ++c)
+        ASSERT_EQ(plain.field.c[c].data, stopped.field.c[c].data);
+    p.iterations = stopped.iterations - 1;
+    EXPECT_GE(seg::gradient_vector_flow(f, p).last_change, 1e-3);
+
+    p.iterations = 60;
+    const seg::GvfResult full = seg::gradient_vector_flow(f, p);
+    const seg::GvfResult band = seg::gradient_vector_flow(f, core::LabelImage3D(f.geometry(), 1), p);
+    for (std::size_t c = 0; c < 2; ++c)
+        for (std::size_t q = 0; q < f.data.size(); ++q)
+            ASSERT_NEAR(band.field.c[c].data[q], full.field.c[c].data[q], 1e-6);
+    const seg::GvfResult again = seg::gradient_vector_flow(f, p);
+    EXPECT_EQ(again.field.c[0].data, full.field.c[0].data);
+}
+
 TEST(Gvf, InvalidInputsAreRejected)
 {
     const core::ImageF f(grid(8, 8, 1), 0.f);
