@@ -41,8 +41,9 @@ constexpr double kMinGrad2 = 1e-12;
 constexpr Index kParallelBand = Index(1) << 15;
 // A level of the redistancing's breadth-first search costs about 10x more per voxel.
 constexpr Index kParallelLevel = Index(1) << 12;
-// Same reasoning for the passes over the whole grid.
-constexpr Index kParallelGrid = Index(1) << 16;
+// Same reasoning for the passes over the whole grid (validation, time step): a 512 x 512 slice
+// takes ~0.2 ms per pass on one thread, and measured 20 ms slower on two on a busy machine.
+constexpr Index kParallelGrid = Index(1) << 20;
 
 double sq(double v)
 {
