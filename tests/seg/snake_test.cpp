@@ -65,7 +65,7 @@ void add_noise(core::ImageF& img, double sigma, unsigned seed)
     std::mt19937 rng(seed);
     std::normal_distribution<double> n(0.0, sigma);
     for (auto& v : img.data)
-        v = static_cast<float>(v + n(rng));
+        v = static_cast<float>(double(v) + n(rng));
 }
 
 double dice(const core::LabelImage3D& a, const core::LabelImage3D& b)
@@ -217,8 +217,12 @@ TEST(Snake, OmegaNeckStallsGgvfNotCdsg)
 }
 
 // Fig 4.12 (Cheng 2007, F4): thin indentations of even and odd width. GVF's field has a centre
-// line at odd widths that carries the contour in; at even widths it has none and stalls at the
-// entrance. CDSG fills both, because its pressure does not depend on the field's parity.
+// line at odd widths that can carry a contour in; at even widths it has none and the contour
+// stalls at the entrance. CDSG fills both from 4 voxels up: its binary edges are thinned to
+// the ridge, so with δ1 = 1 the middle of a 4-voxel finger lies outside δ1 and the pressure,
+// which has no parity, carries the contour to the tip. (Started from the body, the GGVF snake
+// stalls at the entrance at odd widths too in our runs; the test asserts only the even case,
+// which is the thesis's claim.)
 TEST(Snake, ThinFingersOfEvenAndOddWidth)
 {
     const auto g = grid2d(128);
@@ -237,8 +241,9 @@ TEST(Snake, ThinFingersOfEvenAndOddWidth)
         std::cout << "finger width " << width << ": coverage CDSG " << coverage(cdsg.mask, tip) << ", GGVF "
                   << coverage(ggvf.mask, tip) << "\n";
         EXPECT_GT(coverage(cdsg.mask, tip), 0.9) << "width " << width;
-        if (width % 2 == 0)
+        if (width % 2 == 0) {
             EXPECT_LT(coverage(ggvf.mask, tip), 0.5) << "GGVF should stall at even width " << width;
+        }
     }
 }
 

@@ -33,7 +33,7 @@ enum class PressureMode {
 };
 
 struct CdsgParams {
-    int edge_band = 2;              //!< δ1: voxels within this chessboard distance of an edge get the DSG/GGVF field
+    int edge_band = 1;              //!< δ1: voxels within this chessboard distance of an edge get the DSG/GGVF field
     BinaryEdgeParams edges;         //!< binary edge map feeding the chessboard distance
     PressureMode pressure_mode = PressureMode::Scalar;
     double pressure = 1.0;          //!< pressure speed outside δ1 [mm per unit time]
@@ -51,7 +51,13 @@ struct SnakeParams {
     double curvature_weight = 0.05; //!< ε: curvature term weight [mm^2 per unit time] (spacing 1 mm)
     double gac_pressure = 1.0;      //!< v0 of the geodesic active contour
     double gac_stopping_k = 0.005;  //!< k of the GAC stopping function (sharper than the CDSG default)
-    LevelSetParams level_set;
+    //! The level set, with a convergence tolerance of 2 % of the contour's voxels changing side
+    //! per check: on a noisy weak edge a few voxels flicker for ever (docs/segmentation.md).
+    LevelSetParams level_set = [] {
+        LevelSetParams p;
+        p.convergence_tolerance = 0.02;
+        return p;
+    }();
     CompetitionMode competition = CompetitionMode::Auto;
     double aoi_width_mm = 6.0;      //!< AOI: voxels within this distance of the template's boundary
     double aoi_leave_fraction = 0.05; //!< Auto: repeat when more than this fraction of the result's
