@@ -19,7 +19,7 @@ using Index = std::ptrdiff_t;
 //! take ~50 ms instead of 1.5 ms. Volumes (>= 2 slices of 512 x 512) are still parallel.
 constexpr Index kParallelMin = Index(1) << 19;
 
-//! The pole of tan(tan(tan(x))): tan(tan(x)) = π/2, i.e. x = atan(atan(π/2)) ≈ 0.787347.
+//! The pole of tan(tan(tan(x))): tan(tan(x)) = π/2, i.e. x = atan(atan(π/2)) ≈ 0.787337.
 const double kPole = std::atan(std::atan(0.5 * 3.14159265358979323846));
 
 double ttt(double x) { return std::tan(std::tan(std::tan(x))); }

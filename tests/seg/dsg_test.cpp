@@ -52,7 +52,7 @@ seg::VectorField uniform_direction(const core::ImageGeometry& g, double x, doubl
 
 TEST(Dsg, SharpenKernelIsFiniteMonotoneConvexAndFixesTheEnds)
 {
-    // Below the pole (0.78735) tan∘tan∘tan is a composition of increasing convex functions on
+    // Below the pole (0.787337) tan∘tan∘tan is a composition of increasing convex functions on
     // [0, π/2), so on a fine grid the first differences are > 0 and the second ones >= 0 (up to
     // double rounding, 1e-12 of the values); H(0) = 0 and H(1) = 1 by construction.
     for (double s : {0.05, 0.5, 0.75, 0.787}) {
