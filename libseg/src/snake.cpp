@@ -220,9 +220,16 @@ Terms cdsg_terms(const Context& ctx, const core::ImageF& f)
 
     if (p.cdsg.pressure_mode == PressureMode::Scalar) {
         t.pressure = core::ImageF(f.geometry(), 0.f);
+        const double k = p.cdsg.pressure_stopping_k;
         for (std::size_t i = 0; i < band.data.size(); ++i)
-            if (!band.data[i])
-                t.pressure.data[i] = static_cast<float>(p.cdsg.pressure);
+            if (!band.data[i]) {
+                double speed = p.cdsg.pressure;
+                if (k > 0) {
+                    const double gm = double(f.data[i]) * ctx.edges.scale / k;
+                    speed /= 1.0 + gm * gm;
+                }
+                t.pressure.data[i] = static_cast<float>(speed);
+            }
         t.has_pressure = true;
     } else {
         // -∇D_Ch points to the nearest edge; joined with the GVF field into one advection field.

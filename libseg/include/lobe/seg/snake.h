@@ -37,6 +37,9 @@ struct CdsgParams {
     BinaryEdgeParams edges;         //!< binary edge map feeding the chessboard distance
     PressureMode pressure_mode = PressureMode::Scalar;
     double pressure = 1.0;          //!< pressure speed outside δ1 [mm per unit time]
+    double pressure_stopping_k = 0.005; //!< the pressure is scaled by g_k = 1/(1+(|∇I|/k)^2) so that
+                                    //!< edges missing from the binary map still slow it; 0 = constant
+                                    //!< pressure (the thesis's reading)
     bool directional_sharpening = true; //!< use DSG when a template is given (else plain GGVF in δ1)
     DsgParams dsg;
 };
