@@ -31,13 +31,15 @@ struct SpeedTerms {
 
 //! Inputs of `evolve_level_set`.
 struct LevelSetParams {
-    int band_voxels = 4;            //!< δ2 half-width in voxels (of the largest spacing)
+    int band_voxels = 4;            //!< δ2 half-width in voxels (of the largest spacing of the axes
+                                    //!< longer than one voxel); at least 2
     double cfl = 0.7;               //!< Δt = cfl × the explicit stability bound of the terms present
     int max_iterations = 2000;      //!< hard bound: a run that reaches it returns converged = false
     int check_interval = 20;        //!< iterations between convergence checks
-    double convergence_tolerance = 5e-3; //!< converged when, over one check interval, the net
-                                    //!< change of the inside volume is below this fraction of the
-                                    //!< contour's band voxels, for `convergence_checks` checks in a row
+    double convergence_tolerance = 5e-3; //!< converged when the voxels whose inside/outside status
+                                    //!< differs from the previous check, divided by the contour's
+                                    //!< boundary voxels, stay below this for `convergence_checks`
+                                    //!< checks in a row (a translating shape never converges)
     int convergence_checks = 2;
 };
 
