@@ -1,5 +1,6 @@
 // lseg run as a program: exit codes, messages, outputs.
 #include "lobe/io/image_io.h"
+#include "lobe/io/hdf5.h"
 
 #include "common/run_tool.h"
 #include "common/test_data.h"
@@ -9,6 +10,7 @@
 
 #include <array>
 #include <string>
+#include <vector>
 
 using namespace lobe;
 namespace fs = std::filesystem;
@@ -223,3 +225,112 @@ TEST(Lseg, EvalOnTheSharedCtLiver)
 // ---------------------------------------------------------------------------------------------
 // lseg snake tests are added below by the snake work
 // ---------------------------------------------------------------------------------------------
+
+namespace {
+
+// A 2-D slice stack: a bright disc (150 HU on 0) of radius 20 voxels in every slice.
+core::ImageGeometry disc_grid()
+{
+    core::ImageGeometry g;
+    g.size = {64, 64, 3};
+    g.spacing = {1.0, 1.0, 2.0};
+    return g;
+}
+
+fs::path disc_file(const fs::path& path, double radius, std::int16_t value)
+{
+    const auto g = disc_grid();
+    core::Image3D<std::int16_t> img(g, 0);
+    for (int k = 0; k < g.size[2]; ++k)
+        for (int j = 0; j < g.size[1]; ++j)
+            for (int i = 0; i < g.size[0]; ++i)
+                if ((i - 32) * (i - 32) + (j - 32) * (j - 32) <= radius * radius)
+                    img.at(i, j, k) = value;
+    io::write_image(path, img);
+    return path;
+}
+
+} // namespace
+
+// lseg snake on one slice from a seed, then lseg eval of the result against the disc.
+TEST(LsegSnake, SegmentsASliceFromASeedAndRecordsProvenance)
+{
+    const auto dir = test::scratch_dir();
+    const auto ct = disc_file(dir / "ct.mhd", 20, 150);
+    const auto ref = disc_file(dir / "ref.mhd", 20, 1);
+    for (const std::string method : {"cdsg", "gac"}) {
+        const auto out = dir / ("snake-" + method + ".h5");
+        auto r = lseg("snake " + q(ct) + " --slice 1 --seed 32,32,1 --method " + method + " -o " + q(out) +
+                          " --mask " + q(dir / ("mask-" + method + ".mhd")) + " --png " + q(dir / (method + ".png")),
+                      dir);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_NE(r.err.find("converged"), std::string::npos) << r.err;
+        ASSERT_TRUE(fs::exists(out));
+        EXPECT_TRUE(fs::exists(dir / (method + ".png")));
+        const io::Hdf5Reader h5(out);
+        EXPECT_EQ(h5.labels(), std::vector<std::string>{"snake"});
+        const auto prov = h5.provenance();
+        ASSERT_EQ(prov.size(), 1u);
+        bool converged = false, has_method = false;
+        for (const auto& [k, v] : prov[0].parameters) {
+            converged = converged || (k == "result.converged" && v == "true");
+            has_method = has_method || (k.find("method") != std::string::npos && v == method);
+        }
+        EXPECT_TRUE(converged);
+        EXPECT_TRUE(has_method);
+        // A disc of radius 20 found to within about a voxel: Dice > 0.95.
+        r = lseg("eval --json " + q(out) + " " + q(ref) + " --slice 1", dir);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_GT(parse_json(r)["dice"].get<double>(), 0.95) << method;
+    }
+}
+
+// --3d segments the volume; --init takes a mask file.
+TEST(LsegSnake, VolumeFromAnInitialMask)
+{
+    const auto dir = test::scratch_dir();
+    const auto ct = disc_file(dir / "ct.mhd", 20, 150);
+    const auto init = disc_file(dir / "init.mhd", 6, 1);
+    const auto ref = disc_file(dir / "ref.mhd", 20, 1);
+    auto r = lseg("snake " + q(ct) + " --3d --init " + q(init) + " -o " + q(dir / "vol.h5") + " --quiet", dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(r.err.empty()) << "--quiet: " << r.err;
+    r = lseg("eval --json " + q(dir / "vol.h5") + " " + q(ref), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_GT(parse_json(r)["dice"].get<double>(), 0.95);
+}
+
+TEST(LsegSnake, BadInputAndUsage)
+{
+    const auto dir = test::scratch_dir();
+    const auto ct = disc_file(dir / "ct.mhd", 20, 150);
+    auto r = lseg("snake " + q(ct) + " --seed 32,32,1 -o " + q(dir / "a.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2) << "a volume needs --slice or --3d";
+    EXPECT_NE(r.err.find("--slice"), std::string::npos) << r.err;
+    r = lseg("snake " + q(ct) + " --slice 1 -o " + q(dir / "a.h5"), dir);
+    EXPECT_EQ(r.exit_code, 1) << "no --init or --seed";
+    r = lseg("snake " + q(ct) + " --slice 7 --seed 32,32,7 -o " + q(dir / "a.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("outside"), std::string::npos) << r.err;
+    r = lseg("snake " + q(ct) + " --slice 1 --seed 32,32,1 --method nope -o " + q(dir / "a.h5"), dir);
+    EXPECT_EQ(r.exit_code, 1);
+    r = lseg("snake " + q(dir / "missing.mhd") + " --slice 1 --seed 32,32,1 -o " + q(dir / "a.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("missing.mhd"), std::string::npos) << r.err;
+    const auto empty = disc_file(dir / "empty.mhd", 0, 0);
+    r = lseg("snake " + q(ct) + " --slice 1 --init " + q(empty) + " -o " + q(dir / "a.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("empty.mhd"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "a.h5")) << "nothing half-written";
+    // Out of iterations: written, flagged, and exit 3 only when convergence is required.
+    r = lseg("snake " + q(ct) + " --slice 1 --seed 32,32,1 --max-iterations 3 -o " + q(dir / "b.h5"), dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("NOT converge"), std::string::npos) << r.err;
+    r = lseg("snake " + q(ct) + " --slice 1 --seed 32,32,1 --max-iterations 3 --require-convergence -o " +
+                 q(dir / "c.h5"),
+             dir);
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    r = lseg("snake --help", dir);
+    EXPECT_EQ(r.exit_code, 0);
+    EXPECT_NE(r.out.find("--method"), std::string::npos);
+}

@@ -11,7 +11,6 @@
 
 #include <filesystem>
 #include <iomanip>
-#include <map>
 #include <memory>
 #include <sstream>
 
@@ -26,8 +25,8 @@ struct SnakeOptions {
     int init_label = -1, template_label = -1;
     std::vector<std::vector<double>> seeds;
     double seed_radius_mm = 5.0;
-    seg::SnakeMethod method = seg::SnakeMethod::Cdsg;
-    seg::CompetitionMode competition = seg::CompetitionMode::Auto;
+    std::string method = "cdsg";      // kept as typed, so the provenance records the name
+    std::string competition = "auto";
     int slice = -1;
     bool volume = false;
     bool require_convergence = false;
@@ -73,8 +72,12 @@ core::Image3D<T> maybe_slice(const core::Image3D<T>& img, int k, const fs::path&
 int run_snake(SnakeOptions& o, const tools::Progress& progress, tools::RunRecord& record)
 {
     auto& timings = record.timings;
-    o.params.method = o.method;
-    o.params.competition = o.competition;
+    o.params.method = o.method == "cdsg" ? seg::SnakeMethod::Cdsg
+                      : o.method == "ggvf" ? seg::SnakeMethod::Ggvf
+                                           : seg::SnakeMethod::Gac;
+    o.params.competition = o.competition == "off" ? seg::CompetitionMode::Off
+                           : o.competition == "on" ? seg::CompetitionMode::On
+                                                   : seg::CompetitionMode::Auto;
     o.params.edge.window = {o.window[0], o.window[1]};
 
     const core::ImageF volume = timings.time("read image", [&] {
@@ -149,9 +152,7 @@ int run_snake(SnakeOptions& o, const tools::Progress& progress, tools::RunRecord
             pp.index = 0;
             pp.level = o.window[0];
             pp.window = o.window[1];
-            pp.caption = "lseg snake " + std::string(o.method == seg::SnakeMethod::Cdsg   ? "CDSG"
-                                                     : o.method == seg::SnakeMethod::Ggvf ? "GGVF"
-                                                                                          : "GAC");
+            pp.caption = "lseg snake --method " + o.method;
             tools::Overlay ov;
             ov.labels = &r.mask;
             ov.fill_opacity = 0.25;
@@ -191,11 +192,9 @@ Command add_snake(CLI::App& lseg)
         ->check(CLI::PositiveNumber);
     init->excludes(seed);
     cmd->add_option("--image-name", o->image_name, "Image to read from a .h5 input")->capture_default_str();
-    const std::map<std::string, seg::SnakeMethod> methods{
-        {"cdsg", seg::SnakeMethod::Cdsg}, {"ggvf", seg::SnakeMethod::Ggvf}, {"gac", seg::SnakeMethod::Gac}};
     cmd->add_option("--method", o->method, "cdsg | ggvf | gac")
-        ->transform(CLI::CheckedTransformer(methods, CLI::ignore_case))
-        ->default_str("cdsg");
+        ->check(CLI::IsMember({"cdsg", "ggvf", "gac"}))
+        ->capture_default_str();
     auto* slice = cmd->add_option("--slice", o->slice, "Segment axial slice K of a volume (2-D)")
                       ->check(CLI::NonNegativeNumber);
     auto* vol = cmd->add_flag("--3d", o->volume, "Segment the whole volume in 3-D");
@@ -203,11 +202,9 @@ Command add_snake(CLI::App& lseg)
     cmd->add_option("--template", o->templ, "Expected shape (e.g. the neighbouring slice's result): enables "
                                             "energy competition and directional sharpening");
     cmd->add_option("--template-label", o->template_label, "Use this label of --template (default: non-zero)");
-    const std::map<std::string, seg::CompetitionMode> modes{
-        {"off", seg::CompetitionMode::Off}, {"on", seg::CompetitionMode::On}, {"auto", seg::CompetitionMode::Auto}};
     cmd->add_option("--competition", o->competition, "Energy competition with a template: off | on | auto")
-        ->transform(CLI::CheckedTransformer(modes, CLI::ignore_case))
-        ->default_str("auto");
+        ->check(CLI::IsMember({"off", "on", "auto"}))
+        ->capture_default_str();
     cmd->add_option("--window", o->window, "Intensity window level,width [HU]")
         ->delimiter(',')
         ->expected(2)
