@@ -18,4 +18,20 @@ echo "== 2. the pipeline container phantom.h5 (CT, ground-truth labels, provenan
 "$bin/lio" info "$out/phantom/phantom.h5"
 "$bin/lio" convert "$out/phantom/ct.mhd" "$out/phantom/ct.nii.gz"   # for 3D Slicer, ITK-SNAP, ...
 
+echo "== 3. segment: CDSG active contour (and the GAC baseline) on two axial slices, seeded inside the liver" >&2
+# Slice 44 passes through the liver's centroid; slice 59 is where liver and heart touch. The
+# phantom is deterministic, so the seed (voxel 174,240 of each slice) is always in the liver.
+mkdir -p "$out/segment" "$out/pictures/segment"
+for k in 44 59; do
+  for method in cdsg gac; do
+    "$bin/lseg" snake "$out/phantom/ct.mhd" --slice $k --seed 174,240,$k --seed-radius 10 --method $method \
+      -o "$out/segment/snake-$method-slice$k.h5" --png "$out/pictures/segment/snake-$method-slice$k.png"
+    # the reference is the liver with its vessels and tumours (labels 1-4), SLIVER07's convention
+    "$bin/lseg" eval "$out/segment/snake-$method-slice$k.h5" "$out/phantom/labels.mhd" --ref-label 1,2,3,4 \
+      --slice $k --json > "$out/segment/eval-$method-slice$k.json"
+    "$bin/lseg" eval "$out/segment/snake-$method-slice$k.h5" "$out/phantom/labels.mhd" --ref-label 1,2,3,4 \
+      --slice $k --quiet | grep -E "^(Dice|ASD|SLIVER07)"
+  done
+done
+
 echo "== done: results in $out/, pictures in $out/pictures/" >&2
