@@ -59,7 +59,9 @@ struct ItkGacParams {
     double propagation_scaling = 1.0; //!< the ITK example uses 2 (see k1_percentile)
     double curvature_scaling = 1.0;   //!< the ITK example's values
     double advection_scaling = 1.0;
-    double max_rms_error = 0.02;
+    //! The example's 0.02 stops a 3-D front after 31 iterations while it still moves (phantom
+    //! volume: Dice 0.72, barely past the initial mask); 0.005 lets it reach the edges.
+    double max_rms_error = 0.005;
     int iterations = 800;
 };
 ItkRun itk_gac(const core::ImageF& image, const core::LabelImage3D& init, const ItkGacParams& params = {});
@@ -79,7 +81,7 @@ struct ItkGvfParams {
     bool snake = true;
     double curvature_scaling = 0.2;
     double advection_scaling = 1.0;
-    double max_rms_error = 0.02;
+    double max_rms_error = 0.005;
     int snake_iterations = 800;
     ItkGacParams speed;           //!< how the curvature speed (sigmoid) is made
 };
