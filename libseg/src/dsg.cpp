@@ -22,7 +22,10 @@ constexpr Index kParallelMin = Index(1) << 19;
 //! The pole of tan(tan(tan(x))): tan(tan(x)) = π/2, i.e. x = atan(atan(π/2)) ≈ 0.787337.
 const double kPole = std::atan(std::atan(0.5 * 3.14159265358979323846));
 
-double ttt(double x) { return std::tan(std::tan(std::tan(x))); }
+double ttt(double x)
+{
+    return std::tan(std::tan(std::tan(x)));
+}
 
 void check_sharpen_max(double s)
 {

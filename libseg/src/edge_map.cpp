@@ -183,7 +183,8 @@ core::ImageF gaussian_smooth(const core::ImageF& image, double sigma_mm)
         std::fill(dst, dst + nx, 0.f);
         for (int t = -rz; t <= rz; ++t) {
             const Index kk = reflect(k + t, nz);
-            const float* src = in_plane.data.data() + static_cast<std::size_t>(kk) * slice + static_cast<std::size_t>(j * nx);
+            const float* src =
+                in_plane.data.data() + static_cast<std::size_t>(kk) * slice + static_cast<std::size_t>(j * nx);
             const float wt = w[static_cast<std::size_t>(t + rz)];
             for (int i = 0; i < nx; ++i)
                 dst[i] += wt * src[i];
@@ -326,7 +327,8 @@ core::LabelImage3D binary_edges(const core::ImageF& edge, const BinaryEdgeParams
     while (!stack.empty()) {
         const Index p = stack.back();
         stack.pop_back();
-        const int i = static_cast<int>(p % nx), j = static_cast<int>((p / nx) % ny), k = static_cast<int>(p / (Index(nx) * ny));
+        const int i = static_cast<int>(p % nx), j = static_cast<int>((p / nx) % ny),
+                  k = static_cast<int>(p / (Index(nx) * ny));
         for (int dk = -1; dk <= 1; ++dk)
             for (int dj = -1; dj <= 1; ++dj)
                 for (int di = -1; di <= 1; ++di) {
@@ -354,7 +356,8 @@ core::ImageF energy_competition(const core::ImageF& edge, const core::LabelImage
     check_image(edge, edge.data.size(), "energy_competition: edge map");
     check_image(aoi, aoi.data.size(), "energy_competition: area of interest");
     if (!core::same_grid(edge, aoi))
-        throw core::InvalidInputError("energy_competition: the edge map and the area of interest are on different grids");
+        throw core::InvalidInputError(
+            "energy_competition: the edge map and the area of interest are on different grids");
     // G in [0, 1] (thesis: 1, 0.3, 0.2) keeps f' in [0, 1], which GGVF's K assumes.
     if (!std::isfinite(weight) || weight < 0.f || weight > 1.f)
         throw core::InvalidInputError("energy_competition: the weight G must be in [0, 1], got " +

@@ -139,16 +139,16 @@ Coefficients make_coefficients(const core::ImageF& f, const GvfParams& p, int di
 
 //! Pointers into one row of one component for full_chunk.
 struct Row {
-    const float* w;      // v on the row
-    const float* ym;     // v on the rows j-1, j+1, k-1, k+1 (the row itself on the border)
+    const float* w;  // v on the row
+    const float* ym; // v on the rows j-1, j+1, k-1, k+1 (the row itself on the border)
     const float* yp;
     const float* zm;
     const float* zp;
-    const float* a;      // coefficients (see Coefficients)
+    const float* a; // coefficients (see Coefficients)
     const float* r;
     const float* c;
-    float* out;          // v on the row after the step
-    float* d2;           // |Δv|^2 summed over the components so far
+    float* out; // v on the row after the step
+    float* d2;  // |Δv|^2 summed over the components so far
 };
 
 //! Voxels [i0, i1) of a row, x neighbours i-1 and i+1 (FIRST: the first component, which
@@ -172,15 +172,13 @@ void row_interior(const float* __restrict w, const float* __restrict ym, const f
     }
 }
 
-template <int NC, bool FIRST>
-void row_interior(const Row& q, Index i0, Index i1)
+template <int NC, bool FIRST> void row_interior(const Row& q, Index i0, Index i1)
 {
     row_interior<NC, FIRST>(q.w, q.ym, q.yp, q.zm, q.zp, q.a, q.r, q.c, q.out, q.d2, i0, i1);
 }
 
 //! One voxel with explicit x neighbours (the row's ends, where the ghost is the voxel itself).
-template <int NC>
-void row_voxel(const Row& row, Index i, Index im, Index ip, bool first)
+template <int NC> void row_voxel(const Row& row, Index i, Index im, Index ip, bool first)
 {
     const float* w = row.w;
     const float x = w[i];
@@ -300,9 +298,11 @@ int run_steps(int iterations, const ChunkDeps& deps, double tolerance, bool para
         return 0;
     const Index chunks = static_cast<Index>(deps.size());
     const bool lockstep = tolerance > 0.0;
-    std::vector<std::atomic<int>> progress(deps.size()); // steps done by each chunk
-    std::vector<std::atomic<bool>> busy(deps.size());    // a thread is working on the chunk
-    std::vector<std::atomic<Index>> finished(static_cast<std::size_t>(iterations)); // chunks done per step
+    // Per chunk: the steps it has done, and whether a thread is working on it. Per step: how
+    // many chunks have done it.
+    std::vector<std::atomic<int>> progress(deps.size());
+    std::vector<std::atomic<bool>> busy(deps.size());
+    std::vector<std::atomic<Index>> finished(static_cast<std::size_t>(iterations));
     // max |Δv|^2 per step, as float bits: non-negative floats order like their bit patterns.
     std::vector<std::atomic<std::uint32_t>> change(static_cast<std::size_t>(iterations));
     for (std::size_t c = 0; c < deps.size(); ++c) {
@@ -413,9 +413,11 @@ GvfResult gradient_vector_flow(const core::ImageF& edge, const GvfParams& params
         const auto& cur = buf[static_cast<std::size_t>(step % 2)];
         auto& next = buf[static_cast<std::size_t>(1 - step % 2)];
         const Index r0 = chunk * rows_per_chunk, r1 = std::min(rows, r0 + rows_per_chunk);
-        return dim == 3 ? full_chunk<3>(edge, co, cur, next, r0, r1, d2) : full_chunk<2>(edge, co, cur, next, r0, r1, d2);
+        return dim == 3 ? full_chunk<3>(edge, co, cur, next, r0, r1, d2)
+                        : full_chunk<2>(edge, co, cur, next, r0, r1, d2);
     };
-    const int ran = run_steps(iteration_count(edge, params), deps, params.tolerance, Index(n) > kParallelMin, work, res);
+    const int ran =
+        run_steps(iteration_count(edge, params), deps, params.tolerance, Index(n) > kParallelMin, work, res);
     auto& v = buf[static_cast<std::size_t>(ran % 2)];
 
     res.field = VectorField(edge.geometry());
@@ -475,8 +477,7 @@ GvfResult gradient_vector_flow(const core::ImageF& edge, const core::LabelImage3
             }
     }
 
-    Coefficients co =
-        make_coefficients(edge, params, dim, count, [&](std::size_t m) { return ijk_of(voxels[m]); });
+    Coefficients co = make_coefficients(edge, params, dim, count, [&](std::size_t m) { return ijk_of(voxels[m]); });
     GvfResult res;
     std::array<std::array<std::vector<float>, 3>, 2> buf;
     buf[0] = std::move(co.grad);

@@ -20,7 +20,10 @@ core::ImageGeometry grid(int nx, int ny, int nz)
     return g;
 }
 
-float ridge(double d) { return static_cast<float>(std::exp(-d * d / (2 * 1.5 * 1.5))); }
+float ridge(double d)
+{
+    return static_cast<float>(std::exp(-d * d / (2 * 1.5 * 1.5)));
+}
 
 //! Two edge ridges of equal profile on 64 x 64: a vertical one (normal x) at x = 16 over the
 //! whole height, and a horizontal one (normal y) at y = 32 for x >= 32. Their crests at

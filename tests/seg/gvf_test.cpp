@@ -364,7 +364,7 @@ TEST(Gvf, Timing512)
 {
     // Records the cost (printed); the bounds only catch a pathological regression.
     const core::ImageF f = disc_edge_map(512, 256.0, 180.0);
-    GvfParams p; // GGVF, iterations 0 -> 171
+    GvfParams p;                     // GGVF, iterations 0 -> 171
     seg::gradient_vector_flow(f, p); // warm-up
     auto t0 = std::chrono::steady_clock::now();
     const seg::GvfResult full = seg::gradient_vector_flow(f, p);
