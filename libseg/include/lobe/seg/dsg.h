@@ -22,8 +22,10 @@ struct DsgParams {
 //! Directionally compensated, sharpened edge map F_ϑ = Γ_ϑ · f~_H, normalised to [0, 1].
 //! `edge` is the normalised edge map f; `direction` holds, per voxel, the preferred unit edge
 //! normal (from the template contour: the gradient of its signed distance); where `direction`
-//! is zero the voxel gets no compensation. Compensation: Λ = (n·∇f)^2 (the steerable form of
-//! the thesis's f_u^2 - f_v^2, spec §4.9.4), added to Γ weighted by the local mean of Γ.
+//! is zero the voxel gets no compensation. Compensation: the steerable form of the thesis's
+//! f_u^2 - f_v^2 (spec §4.9.4) as a gain, F = (1 + A c) f~_H with c = <(n·∇f)^2> / <|∇f|^2>
+//! averaged over a Gaussian window of σ = neighbourhood_mm / 2 (c = cos² of the angle between
+//! the edge normal and n); docs/algorithms/dsg.md says why a gain and not a sum.
 //! \throw InvalidInputError if the grids differ.
 core::ImageF dsg_edge_map(const core::ImageF& edge, const VectorField& direction, const DsgParams& params = {});
 

@@ -42,7 +42,8 @@ struct EdgeMapResult {
     core::ImageF gradient_magnitude; //!< |∇I_σ| [1/mm]
     core::ImageF edge;               //!< f = gradient magnitude normalised to [0, 1] (the GVF edge map)
     core::ImageF stopping;           //!< g in (0, 1], ~0 on edges, 1 in flat regions
-    double scale = 1.0;              //!< max gradient magnitude used to normalise f
+    double scale = 1.0;              //!< the robust maximum (99.9th percentile of the non-zero
+                                     //!< |∇I_σ|) that normalises f; f is clamped to [0, 1]
 };
 EdgeMapResult edge_map(const core::ImageF& image, const EdgeMapParams& params = {});
 

@@ -23,7 +23,8 @@ struct GvfParams {
     GvfModel model = GvfModel::Ggvf;
     double mu = 0.2;          //!< GVF regularisation μ (Xu & Prince default)
     double k = 0.05;          //!< GGVF K in h = exp(-(|∇f|/K)^2), for f in [0,1]
-    double time_step = 1.0;   //!< Δt; reduced automatically to the stability bound 1/(2·dim·max h)
+    double time_step = 1.0;   //!< Δt; reduced automatically to 0.999 / max(2·dim·h + p), the bound at
+                              //!< which each step is a weighted average (so |v| ≤ max|∇f|)
     int iterations = 0;       //!< 0 = the thesis's minimum, (1/3) of the longest in-plane row
     double tolerance = 0.0;   //!< stop early when max |Δv| per iteration < tolerance (0 = never)
 };
