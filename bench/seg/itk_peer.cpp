@@ -172,7 +172,10 @@ ItkRun itk_gac_d(const core::ImageF& image, const core::LabelImage3D& init, cons
 
     using Diffusion = itk::CurvatureAnisotropicDiffusionImageFilter<FImage<D>, FImage<D>>;
     auto diffusion = Diffusion::New();
-    const double dt = std::min(p.diffusion_time_step, min_spacing(image, D) / double(1u << (D + 1)));
+    // ITK's two stability bounds: (min spacing, or 1 in index units) / 2^(dim+1) from
+    // AnisotropicDiffusionImageFilter, and 0.5 / 2^dim from the curvature variant.
+    const double unit = diffusion->GetUseImageSpacing() ? min_spacing(image, D) : 1.0;
+    const double dt = std::min({p.diffusion_time_step, unit / double(1u << (D + 1)), 0.5 / double(1u << D)});
     diffusion->SetInput(input);
     diffusion->SetTimeStep(dt);
     diffusion->SetNumberOfIterations(static_cast<unsigned>(p.diffusion_iterations));

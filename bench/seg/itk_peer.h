@@ -46,7 +46,7 @@ struct ItkGacParams {
     double window_width = 400.0;
     int diffusion_iterations = 5; //!< the ITK example's values
     double diffusion_conductance = 9.0;
-    double diffusion_time_step = 0.125; //!< reduced to min spacing / 2^(dim+1) when larger (stability)
+    double diffusion_time_step = 0.125; //!< reduced to ITK's stability bounds when larger: min spacing / 2^(dim+1), 0.5 / 2^dim
     double sigma_mm = 1.0;        //!< GradientMagnitudeRecursiveGaussian sigma (libseg's edge sigma too)
     //! Sigmoid statistics as in the ITK Software Guide: K1 ≈ gradient magnitude on the edges the
     //! contour must stop at, K2 ≈ gradient magnitude inside the object; alpha = (K2 - K1) / 6,

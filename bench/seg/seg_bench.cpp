@@ -320,13 +320,6 @@ std::vector<Input> make_inputs(const Options& opt)
         // 3-D runs is measured on the 512 x 512 x 20 ct-dicom volume instead).
         add_slices_and_volume(inputs, opt, "phantom", ct, liver, slices, !opt.quick, false);
     }
-    if (opt.quick) { // a half-resolution phantom volume instead of the full one
-        phantom::PhantomParams pp;
-        pp.spacing = {1.4, 1.4, 5.0};
-        pp.size = phantom::size_for_spacing(pp.spacing);
-        const auto ph = phantom::generate_phantom(pp);
-        add_slices_and_volume(inputs, opt, "phantom-half", to_float(ph.ct), phantom_liver(ph.labels), {}, true, false);
-    }
     // (2) real CT from ../shared/data (TotalSegmentator's test scan; its liver label as reference)
     const fs::path small = opt.data / "ct-small";
     if (fs::exists(small / "ct.mhd") && fs::exists(small / "liver.mhd")) {
@@ -636,7 +629,7 @@ int usage(const char* argv0, int code)
     std::fprintf(code ? stderr : stdout,
                  "usage: %s [--out DIR] [--quick] [--data DIR] [--inputs SUBSTR,..] [--methods SUBSTR,..] [--reps N] [--dump DIR]\n"
                  "  --out DIR      where seg_speed_accuracy.csv goes (default: docs/benchmarks of the source tree)\n"
-                 "  --quick        one phantom slice, a half-resolution phantom volume, ct-small; one repetition\n"
+                 "  --quick        phantom slice k = 59 and ct-small (slice and volume) only; one repetition\n"
                  "  --data DIR     the shared data folder holding ct-small/ (default: $LOBE_DATA_DIR or ../shared/data)\n"
                  "  --inputs LIST  only inputs whose name contains one of these (e.g. phantom-k59,ct-small)\n"
                  "  --methods LIST only methods whose name contains one of these (CDSG, GGVF, GAC, ITK-GAC, ...)\n"
