@@ -226,7 +226,7 @@ Terms cdsg_terms(const Context& ctx, const core::ImageF& f)
                 double speed = p.cdsg.pressure;
                 if (k > 0) {
                     const double gm = double(f.data[i]) * ctx.edges.scale / k;
-                    speed /= 1.0 + gm * gm;
+                    speed /= 1.0 + std::pow(gm, p.cdsg.pressure_stopping_power);
                 }
                 t.pressure.data[i] = static_cast<float>(speed);
             }

@@ -40,6 +40,7 @@ struct CdsgParams {
     double pressure_stopping_k = 0.005; //!< the pressure is scaled by g_k = 1/(1+(|∇I|/k)^2) so that
                                     //!< edges missing from the binary map still slow it; 0 = constant
                                     //!< pressure (the thesis's reading)
+    double pressure_stopping_power = 2.0; //!< the exponent of |∇I|/k in that stopping function
     bool directional_sharpening = true; //!< use DSG when a template is given (else plain GGVF in δ1)
     DsgParams dsg;
 };
