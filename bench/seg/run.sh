@@ -5,12 +5,16 @@
 #   bash bench/seg/run.sh [seg_bench options: --quick, --data DIR, --inputs .., --methods .., --reps N]
 #
 # Needs ITK and matplotlib: `bash scripts/install-deps.sh --bench`. BUILD_DIR=dir builds there
-# instead of the preset's build-bench/ (same cache settings); JOBS=n sets the build parallelism.
+# instead of the preset's build-bench/ (same cache settings); JOBS=n sets the build parallelism;
+# OUT_DIR=dir writes the CSV and PNG there. --quick writes to BUILD_DIR/seg-quick by default.
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$repo"
 build="${BUILD_DIR:-build-bench}"
-out="$repo/docs/benchmarks"
+out="${OUT_DIR:-$repo/docs/benchmarks}"
+for a in "$@"; do # a smoke run must not overwrite the recorded results
+  if [ "$a" = "--quick" ] && [ -z "${OUT_DIR:-}" ]; then out="$repo/$build/seg-quick"; fi
+done
 
 if [ -n "${BUILD_DIR:-}" ]; then
   cmake --preset bench -B "$build" >/dev/null
