@@ -152,7 +152,8 @@ int run_snake(SnakeOptions& o, const tools::Progress& progress, tools::RunRecord
             pp.index = 0;
             pp.level = o.window[0];
             pp.window = o.window[1];
-            pp.caption = "lseg snake --method " + o.method;
+            pp.caption = "lseg snake --method " + o.method +
+                         (o.slice >= 0 ? ", slice " + std::to_string(o.slice) + " of " + o.image.filename().string() : "");
             tools::Overlay ov;
             ov.labels = &r.mask;
             ov.fill_opacity = 0.25;
