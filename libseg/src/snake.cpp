@@ -168,6 +168,14 @@ BinaryEdgeParams noise_adapted(const core::ImageF& f, const BinaryEdgeParams& ba
     return p;
 }
 
+//! A stopping function of the (competition-weighted) edge map: 1 / (1 + (|∇I| / k)^power),
+//! with |∇I| = f * scale since f is |∇I| normalised by `scale`. The GAC's g and CDSG's pressure
+//! scaling are both this, with their own k (and CDSG's exponent).
+double sharp_stopping(float f, double scale, double k, double power)
+{
+    return 1.0 / (1.0 + std::pow(double(f) * scale / k, power));
+}
+
 //! Everything one run needs besides the competition weight.
 struct Context {
     const SnakeParams& params;
@@ -225,8 +233,7 @@ Terms cdsg_terms(const Context& ctx, const core::ImageF& f)
             if (!band.data[i]) {
                 double speed = p.cdsg.pressure;
                 if (k > 0) {
-                    const double gm = double(f.data[i]) * ctx.edges.scale / k;
-                    speed /= 1.0 + std::pow(gm, p.cdsg.pressure_stopping_power);
+                    speed *= sharp_stopping(f.data[i], ctx.edges.scale, k, p.cdsg.pressure_stopping_power);
                 }
                 t.pressure.data[i] = static_cast<float>(speed);
             }
@@ -267,14 +274,10 @@ Terms gac_terms(const Context& ctx, const core::ImageF& f)
 {
     const SnakeParams& p = ctx.params;
     Terms t;
-    // g from the (possibly competition-weighted) edge strength, with the GAC's own sharper k:
-    // f is |∇I| / scale, so |∇I| = f * scale.
-    const double k = p.gac_stopping_k;
+    // g from the (possibly competition-weighted) edge strength, with the GAC's own sharper k.
     t.stopping = core::ImageF(f.geometry(), 1.f);
-    for (std::size_t i = 0; i < f.data.size(); ++i) {
-        const double gm = double(f.data[i]) * ctx.edges.scale / k;
-        t.stopping.data[i] = static_cast<float>(1.0 / (1.0 + gm * gm));
-    }
+    for (std::size_t i = 0; i < f.data.size(); ++i)
+        t.stopping.data[i] = static_cast<float>(sharp_stopping(f.data[i], ctx.edges.scale, p.gac_stopping_k, 2.0));
     t.has_stopping = true;
     t.pressure = t.stopping;
     for (auto& v : t.pressure.data)
@@ -282,14 +285,8 @@ Terms gac_terms(const Context& ctx, const core::ImageF& f)
     t.has_pressure = true;
     // Pull-back -(∇g·N)N: the front moves down the gradient of g, towards the edge.
     VectorField gg = gradient(t.stopping);
-    double max_norm = 0.0;
-    for (std::size_t i = 0; i < f.data.size(); ++i) {
-        double s = 0.0;
-        for (int a = 0; a < 3; ++a)
-            s += double(gg.c[a].data[i]) * double(gg.c[a].data[i]);
-        max_norm = std::max(max_norm, s);
-    }
-    max_norm = std::sqrt(max_norm);
+    const core::ImageF norms = magnitude(gg);
+    const double max_norm = *std::max_element(norms.data.begin(), norms.data.end());
     const double scale = max_norm > 0 ? p.gac_pressure / max_norm : 0.0;
     for (int a = 0; a < 3; ++a)
         for (auto& v : gg.c[a].data)
