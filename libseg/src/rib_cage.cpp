@@ -1,0 +1,1 @@
+#include "lobe/seg/rib_cage.h"

@@ -1,0 +1,1 @@
+#include "lobe/seg/shape_memory.h"

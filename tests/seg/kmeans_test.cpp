@@ -1,0 +1,1 @@
+// Tests of lobe/seg/kmeans.h (being written: issue 4).

@@ -1,0 +1,1 @@
+// Tests of lobe/seg/liver.h (being written: issue 4).

@@ -1,0 +1,1 @@
+// Tests of lobe/seg/postprocess.h (being written: issue 4).

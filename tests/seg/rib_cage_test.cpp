@@ -1,0 +1,1 @@
+// Tests of lobe/seg/rib_cage.h (being written: issue 4).

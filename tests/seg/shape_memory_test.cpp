@@ -1,0 +1,1 @@
+// Tests of lobe/seg/shape_memory.h (being written: issue 4).

@@ -1,0 +1,1 @@
+// Tests of lseg liver (being written: issue 4).

@@ -1,0 +1,1 @@
+// Tests of lseg train (being written: issue 4).

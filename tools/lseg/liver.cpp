@@ -1,0 +1,2 @@
+// lseg liver (being written: issue 4).
+#include "lseg/commands.h"

@@ -1,0 +1,2 @@
+// lseg train (being written: issue 4).
+#include "lseg/commands.h"
