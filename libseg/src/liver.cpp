@@ -1,1 +1,372 @@
+// The liver pipeline's driver: slice-by-slice CDSG propagation (docs/algorithms/liver.md).
 #include "lobe/seg/liver.h"
+
+#include "lobe/core/errors.h"
+#include "lobe/seg/distance_transform.h"
+#include "lobe/seg/edge_map.h"
+
+#include <omp.h>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <sstream>
+#include <thread>
+
+namespace lobe::seg {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0)
+{
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+double pixel_area_mm2(const core::ImageGeometry& g)
+{
+    return g.spacing[0] * g.spacing[1];
+}
+
+std::size_t count(const core::LabelImage3D& m)
+{
+    return static_cast<std::size_t>(std::count_if(m.data.begin(), m.data.end(), [](std::uint8_t v) { return v != 0; }));
+}
+
+//! The mask `m` (any one-slice geometry of the same size) re-placed on slice geometry `g`.
+core::LabelImage3D on_grid(const core::LabelImage3D& m, const core::ImageGeometry& g)
+{
+    core::LabelImage3D out(g, 0);
+    out.data = m.data;
+    return out;
+}
+
+//! An axis-aligned window [i0, i0 + ni) x [j0, j0 + nj) of a one-slice grid.
+struct Window {
+    int i0 = 0, j0 = 0, ni = 0, nj = 0;
+};
+
+//! The window around the non-zero voxels of `m`, widened by margin_mm, clipped to the grid.
+Window window_around(const core::LabelImage3D& m, double margin_mm)
+{
+    int i0 = m.size[0], i1 = -1, j0 = m.size[1], j1 = -1;
+    for (int j = 0; j < m.size[1]; ++j)
+        for (int i = 0; i < m.size[0]; ++i)
+            if (m.at(i, j, 0)) {
+                i0 = std::min(i0, i);
+                i1 = std::max(i1, i);
+                j0 = std::min(j0, j);
+                j1 = std::max(j1, j);
+            }
+    const int mi = static_cast<int>(std::ceil(margin_mm / m.spacing[0]));
+    const int mj = static_cast<int>(std::ceil(margin_mm / m.spacing[1]));
+    Window w;
+    w.i0 = std::max(0, i0 - mi);
+    w.j0 = std::max(0, j0 - mj);
+    w.ni = std::min(m.size[0] - 1, i1 + mi) - w.i0 + 1;
+    w.nj = std::min(m.size[1] - 1, j1 + mj) - w.j0 + 1;
+    return w;
+}
+
+template <class T>
+core::Image3D<T> crop(const core::Image3D<T>& img, const Window& w)
+{
+    core::ImageGeometry g = img.geometry();
+    const core::Vec3 o = g.index_to_physical(w.i0, w.j0, 0);
+    g.origin = {o.x, o.y, o.z};
+    g.size = {w.ni, w.nj, 1};
+    core::Image3D<T> out(g);
+    for (int j = 0; j < w.nj; ++j)
+        for (int i = 0; i < w.ni; ++i)
+            out.at(i, j, 0) = img.at(w.i0 + i, w.j0 + j, 0);
+    return out;
+}
+
+template <class T>
+void paste(const core::Image3D<T>& part, const Window& w, core::Image3D<T>& into)
+{
+    for (int j = 0; j < w.nj; ++j)
+        for (int i = 0; i < w.ni; ++i)
+            into.at(w.i0 + i, w.j0 + j, 0) = part.at(i, j, 0);
+}
+
+//! Voxels within r_mm of `m`: a Euclidean dilation in mm.
+core::LabelImage3D grow(const core::LabelImage3D& m, double r_mm)
+{
+    const core::ImageF d = euclidean_distance(m);
+    core::LabelImage3D out(m.geometry(), 0);
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        out.data[i] = d.data[i] <= r_mm ? 1 : 0;
+    return out;
+}
+
+//! Voxels of `m` farther than r_mm from its outside: a Euclidean erosion in mm.
+core::LabelImage3D shrink(const core::LabelImage3D& m, double r_mm)
+{
+    core::LabelImage3D outside(m.geometry(), 0);
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        outside.data[i] = m.data[i] ? 0 : 1;
+    const core::ImageF d = euclidean_distance(outside);
+    core::LabelImage3D out(m.geometry(), 0);
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        out.data[i] = m.data[i] && d.data[i] > r_mm ? 1 : 0;
+    return out;
+}
+
+//! Keeps the 8-connected pieces of a one-slice mask that have at least min_pixels and at least
+//! `fraction` of the largest piece's pixels.
+void keep_large_pieces(core::LabelImage3D& m, int min_pixels, double fraction)
+{
+    cv::Mat bin(m.size[1], m.size[0], CV_8U, m.data.data());
+    cv::Mat labels, stats, centroids;
+    const int n = cv::connectedComponentsWithStats(bin, labels, stats, centroids, 8, CV_32S);
+    int largest = 0;
+    for (int c = 1; c < n; ++c)
+        largest = std::max(largest, stats.at<int>(c, cv::CC_STAT_AREA));
+    const double need = std::max(double(min_pixels), fraction * largest);
+    std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 0);
+    for (int c = 1; c < n; ++c)
+        keep[static_cast<std::size_t>(c)] = stats.at<int>(c, cv::CC_STAT_AREA) >= need ? 1 : 0;
+    for (int j = 0; j < m.size[1]; ++j)
+        for (int i = 0; i < m.size[0]; ++i) {
+            auto& v = m.data[static_cast<std::size_t>(i) + static_cast<std::size_t>(m.size[0]) * static_cast<std::size_t>(j)];
+            v = v && keep[static_cast<std::size_t>(labels.at<int>(j, i))] ? 1 : 0;
+        }
+}
+
+//! Edges of a slice that separate tissues of near-equal grey (the heart or kidney lying in a
+//! concavity of the liver behind a thin contact line): hysteresis on the edge map with the
+//! thresholds a few noise levels up (f's median is the noise gradient), widened by one pixel.
+core::LabelImage3D cut_lines(const core::ImageF& img, const EdgeMapParams& ep)
+{
+    const EdgeMapResult e = edge_map(img, ep);
+    std::vector<float> v(e.edge.data.begin(), e.edge.data.end());
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    BinaryEdgeParams bp;
+    bp.low = std::max(bp.low, 3.0 * double(*mid));
+    bp.high = std::max(bp.high, 6.0 * double(*mid));
+    core::LabelImage3D edges = binary_edges(e.edge, bp);
+    cv::Mat m(edges.size[1], edges.size[0], CV_8U, edges.data.data());
+    cv::dilate(m, m, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
+    return edges;
+}
+
+//! The liver's grey level, estimated on the seed slice inside the seed.
+struct Tissue {
+    double mean = 0;
+    double sigma = 1;
+};
+
+Tissue tissue_under(const core::ImageF& smoothed, const core::LabelImage3D& m)
+{
+    double s = 0, s2 = 0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        if (m.data[i]) {
+            s += smoothed.data[i];
+            s2 += double(smoothed.data[i]) * smoothed.data[i];
+            ++n;
+        }
+    Tissue t;
+    if (n == 0)
+        return t;
+    t.mean = s / double(n);
+    t.sigma = std::sqrt(std::max(1e-6, s2 / double(n) - t.mean * t.mean));
+    return t;
+}
+
+core::LabelImage3D band_of(const core::ImageF& smoothed, const Tissue& t, double alpha)
+{
+    core::LabelImage3D out(smoothed.geometry(), 0);
+    const double lo = t.mean - alpha * t.sigma, hi = t.mean + alpha * t.sigma;
+    for (std::size_t i = 0; i < out.data.size(); ++i)
+        out.data[i] = smoothed.data[i] >= lo && smoothed.data[i] <= hi ? 1 : 0;
+    return out;
+}
+
+struct SliceOutcome {
+    core::LabelImage3D mask; // on the slice's geometry
+    LiverSliceReport report;
+    bool stop = false;
+};
+
+class Propagator {
+public:
+    Propagator(const core::ImageF& hu, const LiverParams& p, const LiverProgress& progress)
+        : hu_(hu), p_(p), progress_(progress)
+    {
+    }
+
+    //! Segments slice k from the previous slice's accepted mask (or from the seed when
+    //! `previous` is null, using `start` as the initial contour).
+    SliceOutcome segment(int k, const core::LabelImage3D& start, const core::LabelImage3D* previous) const
+    {
+        const auto t0 = Clock::now();
+        SliceOutcome out;
+        out.report.slice = k;
+        const core::ImageF img = core::axial_slice(hu_, k);
+        const core::ImageGeometry& g = img.geometry();
+        const double px = pixel_area_mm2(g);
+        core::LabelImage3D init = on_grid(start, g);
+        core::LabelImage3D templ;
+        if (previous) {
+            templ = on_grid(*previous, g);
+            init = shrink(templ, p_.erosion_mm);
+            const core::ImageF img_w = crop(img, window_around(templ, p_.window_margin_mm));
+            const Window ww = window_around(templ, p_.window_margin_mm);
+            const core::LabelImage3D band = band_of(gaussian_smooth(img_w, 1.0), tissue_, p_.layer_alpha);
+            const core::LabelImage3D lines = cut_lines(img_w, p_.snake.edge);
+            core::LabelImage3D init_w = crop(init, ww);
+            for (std::size_t i = 0; i < init_w.data.size(); ++i)
+                init_w.data[i] = init_w.data[i] && band.data[i] && !lines.data[i];
+            // The previous contour, cut along the slice's edges, falls into pieces; an organ
+            // that took the liver's place (the heart over the dome, the kidney under it) is a
+            // piece much smaller than the liver's, and is left out.
+            keep_large_pieces(init_w, static_cast<int>(std::ceil(p_.min_seed_area_mm2 / px)), p_.keep_piece_fraction);
+            init = core::LabelImage3D(g, 0);
+            paste(init_w, ww, init);
+            if (count(init) == 0) {
+                out.stop = true; // the liver-like tissue under the previous contour is gone
+                return out;
+            }
+        }
+        // Only a window around the contour is modelled: the liver moves a few mm per slice, and
+        // fields, edges and the level set cost in proportion to the pixels they cover.
+        const core::LabelImage3D& around = previous ? templ : init;
+        const double margin = previous ? p_.max_growth_mm + p_.window_margin_mm : p_.seed_window_mm;
+        const Window w = window_around(around, margin);
+        SnakeParams sp = p_.snake;
+        if (previous)
+            sp.level_set.max_iterations = p_.propagation_max_iterations;
+        const core::LabelImage3D templ_w = previous ? crop(templ, w) : core::LabelImage3D();
+        const SnakeResult r = segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr);
+        out.mask = core::LabelImage3D(g, 0);
+        paste(r.mask, w, out.mask);
+        if (previous) {
+            // The liver's outline moves at most max_growth_mm from one slice to the next: a leak
+            // through a weak contact is cut there (the shape memory, when given, learns the bound).
+            const core::LabelImage3D envelope = grow(templ, p_.max_growth_mm);
+            for (std::size_t i = 0; i < out.mask.data.size(); ++i)
+                out.mask.data[i] = out.mask.data[i] && envelope.data[i];
+        }
+        out.report.area_mm2 = double(count(r.mask)) * px;
+        out.report.iterations = r.iterations;
+        out.report.converged = r.converged;
+        out.report.competition_used = r.competition_used;
+        out.report.seconds = seconds_since(t0);
+        if (out.report.area_mm2 < p_.min_area_mm2)
+            out.stop = true;
+        return out;
+    }
+
+    void set_tissue(const Tissue& t) { tissue_ = t; }
+
+    void report(const LiverSliceReport& r) const
+    {
+        if (!progress_)
+            return;
+        std::ostringstream s;
+        s.precision(3);
+        s << "slice " << r.slice << ": " << r.area_mm2 / 100.0 << " cm2, " << r.iterations << " iterations"
+          << (r.converged ? "" : " (not converged)") << (r.competition_used ? ", competition" : "") << ", "
+          << r.seconds << " s";
+        progress_(s.str());
+    }
+
+private:
+    const core::ImageF& hu_;
+    const LiverParams& p_;
+    const LiverProgress& progress_;
+    Tissue tissue_;
+};
+
+} // namespace
+
+SnakeParams default_liver_snake()
+{
+    SnakeParams p;
+    p.method = SnakeMethod::Cdsg;
+    p.competition = CompetitionMode::Auto;
+    return p;
+}
+
+LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
+                            const LiverParams& params, const LiverProgress& progress)
+{
+    if (hu.data.empty() || hu.voxel_count() != hu.data.size())
+        throw core::InvalidInputError("propagate_liver: the image is empty or its data does not match its size");
+    if (seed_slice < 0 || seed_slice >= hu.size[2])
+        throw core::InvalidInputError("propagate_liver: seed slice " + std::to_string(seed_slice) +
+                                      " is outside the image (0.." + std::to_string(hu.size[2] - 1) + ")");
+    if (seed.size[0] != hu.size[0] || seed.size[1] != hu.size[1] || seed.size[2] != 1 ||
+        seed.data.size() != static_cast<std::size_t>(hu.size[0]) * static_cast<std::size_t>(hu.size[1]))
+        throw core::InvalidInputError("propagate_liver: the seed must be one slice of the image's size");
+    if (count(seed) == 0)
+        throw core::InvalidInputError("propagate_liver: the seed is empty");
+
+    const auto t0 = Clock::now();
+    LiverResult result;
+    result.mask = core::LabelImage3D(hu.geometry(), 0);
+    result.seed_slice = seed_slice;
+    Propagator prop(hu, params, progress);
+
+    // The seed slice: the liver's grey level is measured under the seed, then CDSG grows it.
+    const core::ImageF seed_img = core::axial_slice(hu, seed_slice);
+    prop.set_tissue(tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed, seed_img.geometry())));
+    SliceOutcome first = prop.segment(seed_slice, seed, nullptr);
+    prop.report(first.report);
+
+    std::vector<SliceOutcome> up, down;
+    auto run = [&](int step, std::vector<SliceOutcome>& out) {
+        const core::LabelImage3D* prev = &first.mask;
+        for (int k = seed_slice + step; k >= 0 && k < hu.size[2]; k += step) {
+            SliceOutcome s = prop.segment(k, *prev, prev);
+            if (s.mask.data.empty())
+                break;
+            out.push_back(std::move(s));
+            prop.report(out.back().report);
+            prev = &out.back().mask;
+            if (out.back().stop)
+                break;
+        }
+    };
+    if (params.parallel_directions) {
+        // One direction per core; each snake then runs its OpenMP loops on one thread, since
+        // two teams of two spinning threads on two cores make both slower.
+        const int outer = omp_get_max_threads();
+        omp_set_num_threads(1);
+        std::thread t([&] {
+            omp_set_num_threads(1);
+            run(+1, up);
+        });
+        run(-1, down);
+        omp_set_num_threads(outer);
+        t.join();
+    } else {
+        run(+1, up);
+        run(-1, down);
+    }
+
+    const std::size_t plane = static_cast<std::size_t>(hu.size[0]) * static_cast<std::size_t>(hu.size[1]);
+    auto place = [&](const SliceOutcome& s) {
+        std::copy(s.mask.data.begin(), s.mask.data.end(),
+                  result.mask.data.begin() + static_cast<std::ptrdiff_t>(plane * static_cast<std::size_t>(s.report.slice)));
+        result.slices.push_back(s.report);
+    };
+    for (auto it = down.rbegin(); it != down.rend(); ++it)
+        place(*it);
+    place(first);
+    for (const auto& s : up)
+        place(s);
+    result.first_slice = result.slices.front().slice;
+    result.last_slice = result.slices.back().slice;
+    const auto& sp = hu.spacing;
+    result.volume_ml = double(count(result.mask)) * sp[0] * sp[1] * sp[2] / 1000.0;
+    result.timings.emplace_back("propagate", seconds_since(t0));
+    return result;
+}
+
+} // namespace lobe::seg

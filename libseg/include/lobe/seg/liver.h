@@ -1,5 +1,78 @@
 #pragma once
 //! \file
-//! \brief (being written: issue 4)
+//! \brief Automatic liver segmentation of a CT (or MRI) volume: the thesis's chapter 5 pipeline
+//! (spec §5.1) around the CDSG snake. No clicks: the start slice and the patient's rotation come
+//! from rotating template matching, a seed region from grid seeding, then CDSG segments the seed
+//! slice and propagates slice by slice in both directions with the previous contour as template
+//! (energy competition, directional sharpening), constrained by the K-means liver layer, the rib
+//! cage ring and, when one is given, the trained shape memory; a 3-D pass smooths the stack and
+//! applies the SLIVER07 convention. docs/algorithms/liver.md explains every step and choice.
 
-namespace lobe::seg {} // namespace lobe::seg
+#include "lobe/core/image3d.h"
+#include "lobe/seg/snake.h"
+
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace lobe::seg {
+
+//! What each slice of the propagation did (for reports, plots and the HDF5 provenance).
+struct LiverSliceReport {
+    int slice = -1;
+    double area_mm2 = 0;        //!< area of the accepted contour
+    int iterations = 0;         //!< level-set iterations of the snake
+    bool converged = false;
+    bool competition_used = false;
+    bool rejected = false;      //!< the shape memory rejected the snake's contour
+    bool recovered = false;     //!< ... and it was replaced by its recovery
+    double seconds = 0;
+};
+
+//! The default per-slice snake of the liver pipeline: CDSG, energy competition Auto.
+SnakeParams default_liver_snake();
+
+//! Inputs of `segment_liver`. `{}` is the documented default; each `use_*` switch turns one
+//! component off for the ablation chart (bench/seg/liver_bench).
+struct LiverParams {
+    SnakeParams snake = default_liver_snake(); //!< per-slice CDSG
+    double erosion_mm = 2.0;        //!< the previous slice's contour shrinks by this before it
+                                    //!< starts the next slice's snake (snakes expand)
+    double layer_alpha = 2.5;       //!< liver-like band: estimated liver grey ± alpha * sigma
+    double min_area_mm2 = 100.0;    //!< stop rule: a slice whose liver is smaller ends the liver
+    double min_seed_area_mm2 = 25.0; //!< pieces of the shrunk contour smaller than this are dropped
+    double keep_piece_fraction = 0.2; //!< pieces of the cut previous contour smaller than this
+                                    //!< fraction of the largest piece do not start the next snake
+    double max_growth_mm = 6.0;     //!< the contour moves at most this far out from one slice to
+                                    //!< the next (a leak is cut there)
+    double window_margin_mm = 10.0; //!< the snake sees the previous contour's box widened by
+                                    //!< max_growth_mm + this
+    double seed_window_mm = 60.0;   //!< ... and the seed's box widened by this on the seed slice
+    int propagation_max_iterations = 300; //!< level-set bound on a propagated slice (the front
+                                    //!< travels only erosion_mm + max_growth_mm)
+    bool parallel_directions = true; //!< propagate up and down on two threads
+};
+
+//! What `segment_liver` returns.
+struct LiverResult {
+    core::LabelImage3D mask;        //!< 1 = liver, on the input's grid
+    int seed_slice = -1;            //!< where the propagation started
+    int first_slice = -1;           //!< lowest k with liver
+    int last_slice = -1;            //!< highest k with liver
+    double volume_ml = 0;
+    std::vector<LiverSliceReport> slices; //!< one per segmented slice, ascending k
+    std::vector<std::pair<std::string, double>> timings; //!< seconds per stage
+};
+
+//! Called with a one-line progress message ("slice 40/80 ...").
+using LiverProgress = std::function<void(const std::string&)>;
+
+//! Propagates a liver contour through `hu` (the CT in HU, or a normalised MRI) from the one-slice
+//! mask `seed` (size[2] == 1, on slice `seed_slice`), which must lie inside the liver: CDSG
+//! segments the seed slice, then every next slice from the previous contour, in both directions,
+//! until the stop rule ends the liver. \throw InvalidInputError on a seed off the grid or empty.
+LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
+                            const LiverParams& params = {}, const LiverProgress& progress = {});
+
+} // namespace lobe::seg
