@@ -470,6 +470,8 @@ struct Cell {
     bool candidate = false;     // inside the search region and mean inside the liver range
 };
 
+constexpr double kMinContrastFraction = 0.1;
+
 struct SliceCells {
     int k = 0;
     int ncu = 0, ncv = 0;
@@ -698,6 +700,23 @@ LiverSeedResult seed_liver(const core::ImageF& vol, const StartSliceResult& star
             << "% of the body on slice " << best_slice->k << " (> max_body_fraction): no contrast, not a liver";
         res.message = msg.str();
         return res;
+    }
+    // Contrast: a liver is surrounded by other tissue (fat, air, bone). A slice whose body is
+    // almost all at the liver value (a constant or flat image) gives no liver, whatever its size.
+    {
+        const int k = best_slice->k;
+        const cv::Mat src(ny, nx, CV_32F,
+                          const_cast<float*>(vol.data.data() + static_cast<std::size_t>(nx) * ny * static_cast<std::size_t>(k)));
+        const cv::Mat body = filled_largest_component(src > p.body_threshold);
+        const double tol = 5.0 * std::max(noise, bin);
+        cv::Mat differ = (src < liver - tol) | (src > liver + tol);
+        const double frac = cv::countNonZero(differ & body) / std::max(1.0, double(cv::countNonZero(body)));
+        if (frac < kMinContrastFraction) {
+            msg << "; only " << 100.0 * frac << "% of the body on slice " << k << " differs from the liver value by more "
+                << "than 5 noise sd: no contrast, not a liver";
+            res.message = msg.str();
+            return res;
+        }
     }
     res.found = true;
     res.slice = best_slice->k;

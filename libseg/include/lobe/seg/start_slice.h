@@ -28,7 +28,7 @@ struct StartSliceParams {
                                      //!< f = clamp((v - lung_value) / (tissue_value - lung_value), 0, 1)
     double tissue_value = -100.0;    //!< grey level mapped to 1 (fat and all soft tissue)
     double template_scale = 1.0;     //!< scales the template's millimetre layout (body size)
-    double min_score = 0.45;         //!< a slice "shows the heart and both lungs" if its best
+    double min_score = 0.55;         //!< a slice "shows the heart and both lungs" if its best
                                      //!< weighted NCC reaches max(min_score, relative_score * best)
     double relative_score = 0.9;     //!< see min_score
 };
