@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <sstream>
 #include <thread>
 
@@ -193,142 +194,163 @@ struct SliceOutcome {
     bool stop = false;
 };
 
-class Propagator {
-public:
-    Propagator(const core::ImageF& hu, const LiverParams& p, const LiverProgress& progress)
-        : hu_(hu), p_(p), progress_(progress)
-    {
+//! Everything the per-slice step reads besides the slice: built once, shared by both threads.
+struct Context {
+    const core::ImageF& hu;
+    const LiverParams& p;
+    const LiverProgress& progress;
+    const RibCageResult* ribs = nullptr;  //!< null: no rib cage
+    const ShapeMemory* memory = nullptr;  //!< null: the fixed growth envelope
+    Tissue tissue;                        //!< the liver's grey level (seed slice)
+};
+
+//! The slice k as the snake sees it: outside the rib cage replaced by fat, so that a contour
+//! creeping along the subcostal tissue meets a strong edge at the ribs' inner surface.
+core::ImageF slice_image(const Context& c, int k)
+{
+    core::ImageF img = core::axial_slice(c.hu, k);
+    if (c.ribs && c.ribs->valid[static_cast<std::size_t>(k)]) {
+        const core::LabelImage3D inside = core::axial_slice(c.ribs->inside, k);
+        img = mask_outside_rib_cage(img, inside, static_cast<float>(c.p.rib_background_hu));
+    }
+    return img;
+}
+
+//! The liver-like tissue of a window: the K-means layer nearest the liver's grey level (the
+//! thesis's per-slice adaptive clustering), or the fixed band around the seed's statistics.
+core::LabelImage3D liver_layer(const Context& c, const core::ImageF& smoothed)
+{
+    if (!c.p.use_kmeans)
+        return band_of(smoothed, c.tissue, c.p.layer_alpha);
+    const KMeansResult km = kmeans_layers(smoothed, c.p.kmeans);
+    LayerParams lp = c.p.layer;
+    lp.min_sigma = std::max(lp.min_sigma, c.tissue.sigma);
+    return layer_mask(smoothed, km, c.tissue.mean, lp).mask;
+}
+
+double area_of(const core::LabelImage3D& m)
+{
+    return double(count(m)) * pixel_area_mm2(m.geometry());
+}
+
+//! Segments slice k from the previous slice's accepted mask, or from the seed (previous null).
+SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& start, const core::LabelImage3D* previous,
+                           double largest_area_mm2)
+{
+    const LiverParams& p = c.p;
+    const auto t0 = Clock::now();
+    SliceOutcome out;
+    out.report.slice = k;
+    const core::ImageF img = slice_image(c, k);
+    const core::ImageGeometry& g = img.geometry();
+    const double px = pixel_area_mm2(g);
+    core::LabelImage3D init = on_grid(start, g);
+    core::LabelImage3D templ;
+    if (previous) {
+        templ = on_grid(*previous, g);
+        const Window ww = window_around(templ, p.window_margin_mm);
+        const core::ImageF img_w = crop(img, ww);
+        const core::LabelImage3D layer = liver_layer(c, gaussian_smooth(img_w, 1.0));
+        const core::LabelImage3D lines = cut_lines(img_w, p.snake.edge);
+        core::LabelImage3D init_w = crop(shrink(templ, p.erosion_mm), ww);
+        for (std::size_t i = 0; i < init_w.data.size(); ++i)
+            init_w.data[i] = init_w.data[i] && layer.data[i] && !lines.data[i];
+        // The previous contour, cut along the slice's edges, falls into pieces; an organ that
+        // took the liver's place (the heart over the dome, the kidney under it) is a piece much
+        // smaller than the liver's, and is left out.
+        keep_large_pieces(init_w, static_cast<int>(std::ceil(p.min_seed_area_mm2 / px)), p.keep_piece_fraction);
+        if (count(init_w) == 0) {
+            out.stop = true; // no liver-like tissue left under the previous contour: the liver ended
+            return out;
+        }
+        init = core::LabelImage3D(g, 0);
+        paste(init_w, ww, init);
     }
 
-    //! Segments slice k from the previous slice's accepted mask (or from the seed when
-    //! `previous` is null, using `start` as the initial contour).
-    SliceOutcome segment(int k, const core::LabelImage3D& start, const core::LabelImage3D* previous) const
-    {
-        const auto t0 = Clock::now();
-        SliceOutcome out;
-        out.report.slice = k;
-        const core::ImageF img = core::axial_slice(hu_, k);
-        const core::ImageGeometry& g = img.geometry();
-        const double px = pixel_area_mm2(g);
-        core::LabelImage3D init = on_grid(start, g);
-        core::LabelImage3D templ;
-        if (previous) {
-            templ = on_grid(*previous, g);
-            init = shrink(templ, p_.erosion_mm);
-            const core::ImageF img_w = crop(img, window_around(templ, p_.window_margin_mm));
-            const Window ww = window_around(templ, p_.window_margin_mm);
-            const core::LabelImage3D band = band_of(gaussian_smooth(img_w, 1.0), tissue_, p_.layer_alpha);
-            const core::LabelImage3D lines = cut_lines(img_w, p_.snake.edge);
-            core::LabelImage3D init_w = crop(init, ww);
-            for (std::size_t i = 0; i < init_w.data.size(); ++i)
-                init_w.data[i] = init_w.data[i] && band.data[i] && !lines.data[i];
-            // The previous contour, cut along the slice's edges, falls into pieces; an organ
-            // that took the liver's place (the heart over the dome, the kidney under it) is a
-            // piece much smaller than the liver's, and is left out.
-            keep_large_pieces(init_w, static_cast<int>(std::ceil(p_.min_seed_area_mm2 / px)), p_.keep_piece_fraction);
-            init = core::LabelImage3D(g, 0);
-            paste(init_w, ww, init);
-            if (count(init) == 0) {
-                out.stop = true; // the liver-like tissue under the previous contour is gone
-                return out;
+    // Only a window around the contour is modelled: the liver moves a few mm per slice, and
+    // fields, edges and the level set cost in proportion to the pixels they cover.
+    const core::LabelImage3D& around = previous ? templ : init;
+    const Window w = window_around(around, previous ? p.max_growth_mm + p.window_margin_mm : p.seed_window_mm);
+    SnakeParams sp = p.snake;
+    if (previous)
+        sp.level_set.max_iterations = p.propagation_max_iterations;
+    const core::LabelImage3D templ_w = previous ? crop(templ, w) : core::LabelImage3D();
+    const SnakeResult r = segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr);
+    out.mask = core::LabelImage3D(g, 0);
+    paste(r.mask, w, out.mask);
+    out.report.iterations = r.iterations;
+    out.report.converged = r.converged;
+    out.report.competition_used = r.competition_used;
+
+    if (previous) {
+        const double dz = c.hu.spacing[2];
+        if (c.memory && p.use_shape_memory) {
+            // The memory's verdict; a rejected contour is clipped to the envelope the memory
+            // allows around the previous one (a leak is cut at the learnt boundary motion).
+            ShapeCheck check = check_slice(*c.memory, templ, out.mask, dz, largest_area_mm2);
+            out.report.shape_score = check.score;
+            if (!check.plausible) {
+                out.report.rejected = true;
+                const core::LabelImage3D env = plausible_envelope(*c.memory, templ, dz, largest_area_mm2);
+                for (std::size_t i = 0; i < out.mask.data.size(); ++i)
+                    out.mask.data[i] = out.mask.data[i] && env.data[i];
+                check = check_slice(*c.memory, templ, out.mask, dz, largest_area_mm2);
+                out.report.recovered = check.plausible;
+                if (!check.plausible)
+                    out.stop = true; // even clipped it is not a liver slice (collapsed): the end
             }
-        }
-        // Only a window around the contour is modelled: the liver moves a few mm per slice, and
-        // fields, edges and the level set cost in proportion to the pixels they cover.
-        const core::LabelImage3D& around = previous ? templ : init;
-        const double margin = previous ? p_.max_growth_mm + p_.window_margin_mm : p_.seed_window_mm;
-        const Window w = window_around(around, margin);
-        SnakeParams sp = p_.snake;
-        if (previous)
-            sp.level_set.max_iterations = p_.propagation_max_iterations;
-        const core::LabelImage3D templ_w = previous ? crop(templ, w) : core::LabelImage3D();
-        const SnakeResult r = segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr);
-        out.mask = core::LabelImage3D(g, 0);
-        paste(r.mask, w, out.mask);
-        if (previous) {
-            // The liver's outline moves at most max_growth_mm from one slice to the next: a leak
-            // through a weak contact is cut there (the shape memory, when given, learns the bound).
-            const core::LabelImage3D envelope = grow(templ, p_.max_growth_mm);
+        } else {
+            // Without a memory the outline may move at most max_growth_mm between slices.
+            const core::LabelImage3D envelope = grow(templ, p.max_growth_mm);
             for (std::size_t i = 0; i < out.mask.data.size(); ++i)
                 out.mask.data[i] = out.mask.data[i] && envelope.data[i];
         }
-        out.report.area_mm2 = double(count(r.mask)) * px;
-        out.report.iterations = r.iterations;
-        out.report.converged = r.converged;
-        out.report.competition_used = r.competition_used;
-        out.report.seconds = seconds_since(t0);
-        if (out.report.area_mm2 < p_.min_area_mm2)
-            out.stop = true;
-        return out;
     }
-
-    void set_tissue(const Tissue& t) { tissue_ = t; }
-
-    void report(const LiverSliceReport& r) const
-    {
-        if (!progress_)
-            return;
-        std::ostringstream s;
-        s.precision(3);
-        s << "slice " << r.slice << ": " << r.area_mm2 / 100.0 << " cm2, " << r.iterations << " iterations"
-          << (r.converged ? "" : " (not converged)") << (r.competition_used ? ", competition" : "") << ", "
-          << r.seconds << " s";
-        progress_(s.str());
-    }
-
-private:
-    const core::ImageF& hu_;
-    const LiverParams& p_;
-    const LiverProgress& progress_;
-    Tissue tissue_;
-};
-
-} // namespace
-
-SnakeParams default_liver_snake()
-{
-    SnakeParams p;
-    p.method = SnakeMethod::Cdsg;
-    p.competition = CompetitionMode::Auto;
-    return p;
+    out.report.area_mm2 = area_of(out.mask);
+    out.report.seconds = seconds_since(t0);
+    if (out.report.area_mm2 < p.min_area_mm2)
+        out.stop = true;
+    return out;
 }
 
-LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
-                            const LiverParams& params, const LiverProgress& progress)
+void report(const Context& c, const LiverSliceReport& r)
 {
-    if (hu.data.empty() || hu.voxel_count() != hu.data.size())
-        throw core::InvalidInputError("propagate_liver: the image is empty or its data does not match its size");
-    if (seed_slice < 0 || seed_slice >= hu.size[2])
-        throw core::InvalidInputError("propagate_liver: seed slice " + std::to_string(seed_slice) +
-                                      " is outside the image (0.." + std::to_string(hu.size[2] - 1) + ")");
-    if (seed.size[0] != hu.size[0] || seed.size[1] != hu.size[1] || seed.size[2] != 1 ||
-        seed.data.size() != static_cast<std::size_t>(hu.size[0]) * static_cast<std::size_t>(hu.size[1]))
-        throw core::InvalidInputError("propagate_liver: the seed must be one slice of the image's size");
-    if (count(seed) == 0)
-        throw core::InvalidInputError("propagate_liver: the seed is empty");
+    if (!c.progress)
+        return;
+    std::ostringstream s;
+    s.precision(3);
+    s << "slice " << r.slice << ": " << r.area_mm2 / 100.0 << " cm2, " << r.iterations << " iterations"
+      << (r.converged ? "" : " (bound)") << (r.competition_used ? ", competition" : "")
+      << (r.rejected ? (r.recovered ? ", clipped by the shape memory" : ", rejected by the shape memory") : "") << ", "
+      << r.seconds << " s";
+    c.progress(s.str());
+}
 
+LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed_slice)
+{
+    const core::ImageF& hu = c.hu;
+    const LiverParams& params = c.p;
     const auto t0 = Clock::now();
     LiverResult result;
     result.mask = core::LabelImage3D(hu.geometry(), 0);
     result.seed_slice = seed_slice;
-    Propagator prop(hu, params, progress);
 
-    // The seed slice: the liver's grey level is measured under the seed, then CDSG grows it.
-    const core::ImageF seed_img = core::axial_slice(hu, seed_slice);
-    prop.set_tissue(tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed, seed_img.geometry())));
-    SliceOutcome first = prop.segment(seed_slice, seed, nullptr);
-    prop.report(first.report);
+    SliceOutcome first = segment_slice(c, seed_slice, seed, nullptr, 0.0);
+    report(c, first.report);
+    const double first_area = first.report.area_mm2;
 
     std::vector<SliceOutcome> up, down;
     auto run = [&](int step, std::vector<SliceOutcome>& out) {
         const core::LabelImage3D* prev = &first.mask;
+        double largest = first_area;
         for (int k = seed_slice + step; k >= 0 && k < hu.size[2]; k += step) {
-            SliceOutcome s = prop.segment(k, *prev, prev);
+            SliceOutcome s = segment_slice(c, k, *prev, prev, largest);
             if (s.mask.data.empty())
                 break;
             out.push_back(std::move(s));
-            prop.report(out.back().report);
+            report(c, out.back().report);
             prev = &out.back().mask;
+            largest = std::max(largest, out.back().report.area_mm2);
             if (out.back().stop)
                 break;
         }
@@ -338,13 +360,26 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
         // two teams of two spinning threads on two cores make both slower.
         const int outer = omp_get_max_threads();
         omp_set_num_threads(1);
+        std::exception_ptr failed;
         std::thread t([&] {
             omp_set_num_threads(1);
-            run(+1, up);
+            try {
+                run(+1, up);
+            } catch (...) {
+                failed = std::current_exception();
+            }
         });
-        run(-1, down);
-        omp_set_num_threads(outer);
+        try {
+            run(-1, down);
+        } catch (...) {
+            t.join();
+            omp_set_num_threads(outer);
+            throw;
+        }
         t.join();
+        omp_set_num_threads(outer);
+        if (failed)
+            std::rethrow_exception(failed);
     } else {
         run(+1, up);
         run(-1, down);
@@ -363,10 +398,135 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
         place(s);
     result.first_slice = result.slices.front().slice;
     result.last_slice = result.slices.back().slice;
-    const auto& sp = hu.spacing;
-    result.volume_ml = double(count(result.mask)) * sp[0] * sp[1] * sp[2] / 1000.0;
     result.timings.emplace_back("propagate", seconds_since(t0));
     return result;
+}
+
+double volume_ml(const core::LabelImage3D& m)
+{
+    return double(count(m)) * m.spacing[0] * m.spacing[1] * m.spacing[2] / 1000.0;
+}
+
+void check_image(const core::ImageF& hu, const char* who)
+{
+    if (hu.data.empty() || hu.voxel_count() != hu.data.size())
+        throw core::InvalidInputError(std::string(who) + ": the image is empty or its data does not match its size");
+    for (float v : hu.data)
+        if (!std::isfinite(v))
+            throw core::InvalidInputError(std::string(who) + ": the image has non-finite values");
+}
+
+} // namespace
+
+SnakeParams default_liver_snake()
+{
+    SnakeParams p;
+    p.method = SnakeMethod::Cdsg;
+    p.competition = CompetitionMode::Auto;
+    return p;
+}
+
+LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
+                            const LiverParams& params, const LiverProgress& progress)
+{
+    check_image(hu, "propagate_liver");
+    if (seed_slice < 0 || seed_slice >= hu.size[2])
+        throw core::InvalidInputError("propagate_liver: seed slice " + std::to_string(seed_slice) +
+                                      " is outside the image (0.." + std::to_string(hu.size[2] - 1) + ")");
+    if (seed.size[0] != hu.size[0] || seed.size[1] != hu.size[1] || seed.size[2] != 1 ||
+        seed.data.size() != static_cast<std::size_t>(hu.size[0]) * static_cast<std::size_t>(hu.size[1]))
+        throw core::InvalidInputError("propagate_liver: the seed must be one slice of the image's size");
+    if (count(seed) == 0)
+        throw core::InvalidInputError("propagate_liver: the seed is empty");
+    Context c{hu, params, progress};
+    const core::ImageF seed_img = core::axial_slice(hu, seed_slice);
+    c.tissue = tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed, seed_img.geometry()));
+    LiverResult r = propagate(c, seed, seed_slice);
+    r.stacked = r.mask;
+    r.volume_ml = volume_ml(r.mask);
+    return r;
+}
+
+LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, const ShapeMemory* memory,
+                          const LiverProgress& progress)
+{
+    check_image(hu, "segment_liver");
+    if (hu.size[2] < params.min_slices)
+        throw core::InvalidInputError("segment_liver: the volume has " + std::to_string(hu.size[2]) +
+                                      " slices; the liver pipeline needs at least " + std::to_string(params.min_slices));
+    const auto t0 = Clock::now();
+    auto say = [&](const std::string& s) {
+        if (progress)
+            progress(s);
+    };
+    std::vector<std::pair<std::string, double>> timings;
+    auto lap = [&](const std::string& name, Clock::time_point t) { timings.emplace_back(name, seconds_since(t)); };
+
+    auto t = Clock::now();
+    StartSliceResult start;
+    if (params.use_start_slice) {
+        start = find_start_slice(hu, params.start);
+        say(start.found ? "start slice " + std::to_string(start.slice) + " (heart and lungs), rotation " +
+                              std::to_string(static_cast<int>(std::lround(start.rotation_deg))) + " deg"
+                        : "no heart/lung slice: " + start.message);
+    } else {
+        start.message = "start slice search switched off";
+    }
+    lap("start slice", t);
+
+    t = Clock::now();
+    const LiverSeedResult seed = seed_liver(hu, start, params.seed);
+    lap("seed", t);
+    if (!seed.found)
+        throw LiverNotFoundError("no liver found: " + seed.message);
+    say("seed on slice " + std::to_string(seed.slice) + ": " + std::to_string(static_cast<int>(seed.area_mm2 / 100)) +
+        " cm2, liver grey level " + std::to_string(static_cast<int>(std::lround(seed.liver_value))));
+
+    t = Clock::now();
+    RibCageResult ribs;
+    if (params.use_rib_cage) {
+        ribs = rib_cage(hu, params.ribs);
+        const auto valid = std::count(ribs.valid.begin(), ribs.valid.end(), std::uint8_t(1));
+        say("rib cage ring on " + std::to_string(valid) + " of " + std::to_string(hu.size[2]) + " slices");
+    }
+    lap("rib cage", t);
+
+    Context c{hu, params, progress};
+    c.ribs = params.use_rib_cage ? &ribs : nullptr;
+    c.memory = params.use_shape_memory ? memory : nullptr;
+    // The liver's grey level and spread on the smoothed image the layers are cut from, under
+    // the seed (this patient, this scan).
+    const core::ImageF seed_img = core::axial_slice(hu, seed.slice);
+    c.tissue = tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed.mask, seed_img.geometry()));
+    LiverResult r = propagate(c, seed.mask, seed.slice);
+    for (const auto& tm : r.timings)
+        timings.push_back(tm);
+    r.stacked = r.mask;
+    r.start = start;
+    r.seed = seed;
+
+    if (params.use_3d_pass) {
+        t = Clock::now();
+        r.mask = postprocess_liver(r.stacked, params.post);
+        lap("3-D pass", t);
+    }
+    r.volume_ml = volume_ml(r.mask);
+    if (r.volume_ml <= 0)
+        throw LiverNotFoundError("no liver found: the contour vanished");
+    // first/last slices of the final mask
+    const std::size_t plane = static_cast<std::size_t>(hu.size[0]) * static_cast<std::size_t>(hu.size[1]);
+    r.first_slice = -1;
+    for (int k = 0; k < hu.size[2]; ++k) {
+        const auto b = r.mask.data.begin() + static_cast<std::ptrdiff_t>(plane * static_cast<std::size_t>(k));
+        if (std::any_of(b, b + static_cast<std::ptrdiff_t>(plane), [](std::uint8_t v) { return v != 0; })) {
+            if (r.first_slice < 0)
+                r.first_slice = k;
+            r.last_slice = k;
+        }
+    }
+    timings.emplace_back("total", seconds_since(t0));
+    r.timings = timings;
+    return r;
 }
 
 } // namespace lobe::seg

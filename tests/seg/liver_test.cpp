@@ -49,7 +49,13 @@ TEST(LiverPropagation, ExperimentTruthSeed)
     core::LabelImage3D seed(sl.geometry(), 0);
     for (std::size_t i = 0; i < sl.data.size(); ++i)
         seed.data[i] = sl.data[i] && d.data[i] > 10 ? 1 : 0;
-    const auto r = seg::propagate_liver(hu, seed, k0, {}, [](const std::string& s) { std::cerr << s << "\n"; });
+    seg::LiverParams lp;
+    if (std::getenv("LOBE_NO_RIBS")) lp.use_rib_cage = false;
+    if (std::getenv("LOBE_NO_KMEANS")) lp.use_kmeans = false;
+    if (std::getenv("LOBE_NO_3D")) lp.use_3d_pass = false;
+    const auto r = std::getenv("LOBE_FULL") ? seg::segment_liver(hu, lp, nullptr, [](const std::string& s) { std::cerr << s << "\n"; })
+                                           : seg::propagate_liver(hu, seed, k0, lp, [](const std::string& s) { std::cerr << s << "\n"; });
+    for (const auto& t : r.timings) std::cerr << t.first << " " << t.second << "\n";
     const auto m = seg::evaluate_segmentation(r.mask, truth);
     std::cerr << "Dice " << m.dice << " ASD " << m.surface.average << " slices " << r.first_slice << ".." << r.last_slice
               << " time " << r.timings[0].second << "\n";

@@ -9,7 +9,12 @@
 //! applies the SLIVER07 convention. docs/algorithms/liver.md explains every step and choice.
 
 #include "lobe/core/image3d.h"
+#include "lobe/seg/kmeans.h"
+#include "lobe/seg/postprocess.h"
+#include "lobe/seg/rib_cage.h"
+#include "lobe/seg/shape_memory.h"
 #include "lobe/seg/snake.h"
+#include "lobe/seg/start_slice.h"
 
 #include <functional>
 #include <string>
@@ -26,7 +31,8 @@ struct LiverSliceReport {
     bool converged = false;
     bool competition_used = false;
     bool rejected = false;      //!< the shape memory rejected the snake's contour
-    bool recovered = false;     //!< ... and it was replaced by its recovery
+    bool recovered = false;     //!< ... and its clip to the memory's envelope was accepted
+    double shape_score = 0;     //!< the memory's score (<= 1 plausible; 0 without a memory)
     double seconds = 0;
 };
 
@@ -52,11 +58,30 @@ struct LiverParams {
     int propagation_max_iterations = 300; //!< level-set bound on a propagated slice (the front
                                     //!< travels only erosion_mm + max_growth_mm)
     bool parallel_directions = true; //!< propagate up and down on two threads
+
+    // The pipeline's components (segment_liver); each can be switched off for the ablation.
+    bool use_start_slice = true;    //!< rotating template: the heart/lung slice bounds the seed search
+    bool use_kmeans = true;         //!< the liver-like band is the K-means liver layer (else seed
+                                    //!< mean ± layer_alpha sigma)
+    bool use_rib_cage = true;       //!< the image outside the rib ring is set to rib_background_hu
+    bool use_shape_memory = true;   //!< check each slice against the memory, when one is given
+    bool use_3d_pass = true;        //!< smooth the stack, fill holes, apply the convention
+    double rib_background_hu = -100.0; //!< what lies outside the rib cage becomes (fat)
+    int min_slices = 5;             //!< fewer slices: refuse (a volume, not a slice, is needed)
+    StartSliceParams start;
+    LiverSeedParams seed;
+    KMeansParams kmeans;
+    LayerParams layer;
+    RibCageParams ribs;
+    PostprocessParams post;
 };
 
 //! What `segment_liver` returns.
 struct LiverResult {
     core::LabelImage3D mask;        //!< 1 = liver, on the input's grid
+    core::LabelImage3D stacked;     //!< the slice-by-slice result before the 3-D pass
+    StartSliceResult start;         //!< the rotating template's answer
+    LiverSeedResult seed;           //!< the seed region
     int seed_slice = -1;            //!< where the propagation started
     int first_slice = -1;           //!< lowest k with liver
     int last_slice = -1;            //!< highest k with liver
@@ -74,5 +99,17 @@ using LiverProgress = std::function<void(const std::string&)>;
 //! until the stop rule ends the liver. \throw InvalidInputError on a seed off the grid or empty.
 LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
                             const LiverParams& params = {}, const LiverProgress& progress = {});
+
+//! The whole pipeline: start slice, seed, rib cage, propagation with K-means layers and the
+//! shape memory (may be null), 3-D pass. \throw LiverNotFoundError when no liver is found (with
+//! the reason), InvalidInputError for an image it cannot take (too few slices, non-finite).
+LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params = {}, const ShapeMemory* memory = nullptr,
+                          const LiverProgress& progress = {});
+
+//! No liver in the volume (or none the pipeline can find): the message says why.
+class LiverNotFoundError : public core::InvalidInputError {
+public:
+    using core::InvalidInputError::InvalidInputError;
+};
 
 } // namespace lobe::seg
