@@ -388,22 +388,18 @@ StartSliceResult find_start_slice(const core::ImageF& vol, const StartSliceParam
     const int kA = coarse_slices[cbest];
     std::ostringstream msg;
     msg.precision(3);
-    if (!(coarse_score[cbest] >= p.min_score)) {
-        msg << "no slice shows the heart between both lungs: best weighted NCC " << coarse_score[cbest] << " (slice "
-            << kA << ") < min_score " << p.min_score << "; the volume may not reach the chest";
-        res.message = msg.str();
-        return res;
-    }
-
+    // slice_scores are filled (pass C at the coarse angle) even when nothing matches, for plots
+    const bool matched = coarse_score[cbest] >= p.min_score;
     // Pass B: rotational TM, fine angles around the coarse best, on the best slice and its
     // neighbours; summed peak scores, refined by a parabola through the best three.
+    double angle = coarse_angle[cbest];
     std::vector<double> fine;
     for (double a = coarse_angle[cbest] - p.coarse_step_deg; a <= coarse_angle[cbest] + p.coarse_step_deg + 1e-9;
          a += p.rotation_step_deg)
         if (std::abs(a) <= p.max_rotation_deg + 1e-9)
             fine.push_back(a);
     std::vector<Prepared> rot_slices;
-    for (int d = -1; d <= 1; ++d)
+    for (int d = -1; d <= 1 && matched; ++d)
         if (kA + d >= 0 && kA + d < nz)
             rot_slices.push_back(prepare(kA + d));
     std::vector<double> total(fine.size(), 0.0);
@@ -414,8 +410,9 @@ StartSliceResult find_start_slice(const core::ImageF& vol, const StartSliceParam
             total[static_cast<std::size_t>(a)] += peak(pr, ks);
     }
     const std::size_t ia = static_cast<std::size_t>(std::max_element(total.begin(), total.end()) - total.begin());
-    double angle = fine[ia];
-    if (ia > 0 && ia + 1 < fine.size()) {
+    if (matched)
+        angle = fine[ia];
+    if (matched && ia > 0 && ia + 1 < fine.size()) {
         const double y0 = total[ia - 1], y1 = total[ia], y2 = total[ia + 1];
         const double den = y0 - 2 * y1 + y2;
         if (den < 0)
@@ -432,6 +429,12 @@ StartSliceResult find_start_slice(const core::ImageF& vol, const StartSliceParam
     const double best = *it;
     const int kbest = static_cast<int>(it - res.slice_scores.begin());
     const double thr = std::max(p.min_score, p.relative_score * best);
+    if (!matched) {
+        msg << "no slice shows the heart between both lungs: best weighted NCC " << coarse_score[cbest] << " (slice "
+            << kA << ") < min_score " << p.min_score << "; the volume may not reach the chest";
+        res.message = msg.str();
+        return res;
+    }
     if (!(best >= p.min_score)) {
         msg << "no slice shows the heart between both lungs at rotation " << angle << " deg: best weighted NCC " << best
             << " < min_score " << p.min_score;
@@ -471,6 +474,7 @@ struct Cell {
 };
 
 constexpr double kMinContrastFraction = 0.1;
+constexpr int kMinCellPixels = 3;
 
 struct SliceCells {
     int k = 0;
@@ -496,8 +500,9 @@ LiverSeedResult seed_liver(const core::ImageF& vol, const StartSliceResult& star
     const int up = superior_sign(vol, what);
     const int nx = vol.size[0], ny = vol.size[1], nz = vol.size[2];
     const double sx = vol.spacing[0], sy = vol.spacing[1];
-    const int cw = std::max(1, static_cast<int>(std::lround(p.cell_mm / sx)));
-    const int ch = std::max(1, static_cast<int>(std::lround(p.cell_mm / sy)));
+    // at least 3 x 3 pixels per cell: the sd of fewer pixels is too noisy to judge homogeneity
+    const int cw = std::max(kMinCellPixels, static_cast<int>(std::lround(p.cell_mm / sx)));
+    const int ch = std::max(kMinCellPixels, static_cast<int>(std::lround(p.cell_mm / sy)));
     const int ncu = nx / cw, ncv = ny / ch;
     const double cell_area = cw * sx * ch * sy;
 

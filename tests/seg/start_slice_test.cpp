@@ -393,6 +393,10 @@ TEST(StartSlicePhantom, VolumeCutBelowTheHeartStillSeedsTheLiver)
     const auto s = seg::find_start_slice(ct);
     EXPECT_FALSE(s.found) << s.message;
     EXPECT_NE(s.message.find("no slice shows the heart"), std::string::npos) << s.message;
+    // the per-slice scores are still there for plots, all low (below min_score 0.55)
+    ASSERT_EQ(s.slice_scores.size(), static_cast<std::size_t>(ct.size[2]));
+    EXPECT_LT(*std::max_element(s.slice_scores.begin(), s.slice_scores.end()), 0.55);
+    EXPECT_GT(*std::max_element(s.slice_scores.begin(), s.slice_scores.end()), 0.0);
     const auto seed = seg::seed_liver(ct, s);
     ASSERT_TRUE(seed.found) << seed.message;
     EXPECT_FALSE(seed.used_start_slice);
