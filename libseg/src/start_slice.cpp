@@ -97,7 +97,13 @@ struct Kernel {
 //! axes = {a0x, a0y, a1x, a1y}: the physical x, y of one mm along the grid's u and v axes.
 Kernel rasterise(double pixel_u, double pixel_v, const std::array<double, 4>& axes, double angle_deg, double scale)
 {
-    const double radius = std::hypot(kSupport.ax + std::abs(kSupport.cx), kSupport.ay + std::abs(kSupport.cy)) * scale;
+    // the support's farthest point from the heart centre bounds the kernel at any rotation
+    double r0 = 0;
+    for (int t = 0; t < 720; ++t) {
+        const double a = t * kPi / 360;
+        r0 = std::max(r0, std::hypot(kSupport.cx + kSupport.ax * std::cos(a), kSupport.cy + kSupport.ay * std::sin(a)));
+    }
+    const double radius = (r0 + 1.0) * scale;
     const int ru = static_cast<int>(std::ceil(radius / pixel_u));
     const int rv = static_cast<int>(std::ceil(radius / pixel_v));
     Kernel k;
@@ -528,8 +534,15 @@ LiverSeedResult seed_liver(const core::ImageF& vol, const StartSliceResult& star
         heart_x = vol.index_to_physical(start.heart_centre).x;
     }
 
-    std::vector<SliceCells> slices;
-    for (int k = k_lo; k <= k_hi; ++k) {
+    // Slices about one cell apart: the seed's exact slice does not matter, the time does.
+    const int stride = std::max(1, static_cast<int>(std::floor(p.cell_mm / vol.spacing[2])));
+    std::vector<int> ks;
+    for (int k = with_start ? start.slice : k_hi; k >= k_lo && k <= k_hi; k += (with_start ? -up : -1) * stride)
+        ks.push_back(k);
+    std::vector<SliceCells> per_slice(ks.size());
+#pragma omp parallel for schedule(dynamic)
+    for (int ik = 0; ik < static_cast<int>(ks.size()); ++ik) {
+        const int k = ks[static_cast<std::size_t>(ik)];
         const cv::Mat src(ny, nx, CV_32F,
                           const_cast<float*>(vol.data.data() + static_cast<std::size_t>(nx) * ny * static_cast<std::size_t>(k)));
         cv::Mat bin = src > p.body_threshold;
@@ -542,8 +555,8 @@ LiverSeedResult seed_liver(const core::ImageF& vol, const StartSliceResult& star
         cv::distanceTransform(body, dist, cv::DIST_L2, 3);
         const double px_mm = std::min(sx, sy);
         double cxsum = 0, ymin = std::numeric_limits<double>::max(), ymax = -ymin;
-        for (int j = 0; j < ny; j += 2)
-            for (int i = 0; i < nx; i += 2)
+        for (int j = 0; j < ny; j += 4)
+            for (int i = 0; i < nx; i += 4)
                 if (body.at<std::uint8_t>(j, i)) {
                     const core::Vec3 q = vol.index_to_physical(i, j, k);
                     cxsum += q.x;
@@ -551,8 +564,8 @@ LiverSeedResult seed_liver(const core::ImageF& vol, const StartSliceResult& star
                     ymax = std::max(ymax, q.y);
                 }
         int counted = 0;
-        for (int j = 0; j < ny; j += 2)
-            for (int i = 0; i < nx; i += 2)
+        for (int j = 0; j < ny; j += 4)
+            for (int i = 0; i < nx; i += 4)
                 counted += body.at<std::uint8_t>(j, i) ? 1 : 0;
         const double body_cx = cxsum / std::max(1, counted);
         const double side_x = with_start ? heart_x : body_cx;
@@ -589,8 +602,12 @@ LiverSeedResult seed_liver(const core::ImageF& vol, const StartSliceResult& star
                     continue;
                 c.candidate = std::isfinite(c.mean) && c.mean >= p.liver_range_lo && c.mean <= p.liver_range_hi;
             }
-        slices.push_back(std::move(sc));
+        per_slice[static_cast<std::size_t>(ik)] = std::move(sc);
     }
+    std::vector<SliceCells> slices;
+    for (auto& sc : per_slice)
+        if (!sc.cells.empty())
+            slices.push_back(std::move(sc));
     if (slices.empty()) {
         res.message = "no body (no voxel above body_threshold " + std::to_string(p.body_threshold) +
                       ") on the searched slices";
