@@ -15,5 +15,6 @@ struct Command {
 
 Command add_eval(CLI::App& lseg); //!< lseg eval SEG REF: Dice, the SLIVER07 measures and score
 Command add_snake(CLI::App& lseg); //!< lseg snake IMAGE: CDSG / GGVF / GAC active contours
+Command add_train(CLI::App& lseg); //!< lseg train --image --labels ... -o: the shape memory
 
 } // namespace lobe::lseg
