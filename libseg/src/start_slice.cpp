@@ -400,10 +400,13 @@ StartSliceResult find_start_slice(const core::ImageF& vol, const StartSliceParam
     // neighbours; summed peak scores, refined by a parabola through the best three.
     double angle = coarse_angle[cbest];
     std::vector<double> fine;
-    for (double a = coarse_angle[cbest] - p.coarse_step_deg; a <= coarse_angle[cbest] + p.coarse_step_deg + 1e-9;
-         a += p.rotation_step_deg)
-        if (std::abs(a) <= p.max_rotation_deg + 1e-9)
-            fine.push_back(a);
+    // multiples of the fine step (so 0 is always tried) within one coarse step of the coarse best
+    for (int n = static_cast<int>(std::ceil((angle - p.coarse_step_deg) / p.rotation_step_deg - 1e-9));
+         n * p.rotation_step_deg <= angle + p.coarse_step_deg + 1e-9; ++n)
+        if (std::abs(n * p.rotation_step_deg) <= p.max_rotation_deg + 1e-9)
+            fine.push_back(n * p.rotation_step_deg);
+    if (fine.empty())
+        fine.push_back(angle);
     std::vector<Prepared> rot_slices;
     for (int d = -1; d <= 1 && matched; ++d)
         if (kA + d >= 0 && kA + d < nz)
@@ -462,6 +465,8 @@ StartSliceResult find_start_slice(const core::ImageF& vol, const StartSliceParam
     res.rotation_deg = angle;
     res.score = mx;
     res.heart_centre = {(loc.x + 0.5) * nx / double(wu) - 0.5, (loc.y + 0.5) * ny / double(wv) - 0.5, double(kstart)};
+    if (std::abs(angle) >= p.max_rotation_deg - 0.5 * p.rotation_step_deg)
+        msg << "rotation at the search limit (the patient may be rotated further); ";
     msg << "start slice " << kstart << " (score " << mx << "; best " << best << " on slice " << kbest
         << "; threshold " << thr << "), rotation " << angle << " deg";
     res.message = msg.str();
