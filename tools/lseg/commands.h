@@ -16,5 +16,6 @@ struct Command {
 Command add_eval(CLI::App& lseg); //!< lseg eval SEG REF: Dice, the SLIVER07 measures and score
 Command add_snake(CLI::App& lseg); //!< lseg snake IMAGE: CDSG / GGVF / GAC active contours
 Command add_train(CLI::App& lseg); //!< lseg train --image --labels ... -o: the shape memory
+Command add_liver(CLI::App& lseg); //!< lseg liver IMAGE -o OUT.h5: automatic liver segmentation
 
 } // namespace lobe::lseg

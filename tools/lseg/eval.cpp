@@ -24,6 +24,7 @@ struct EvalOptions {
     bool json = false;
     std::vector<long long> label, ref_label; //!< empty = every non-zero voxel
     int slice = -1;                          //!< compare axial slice K of any volume input
+    std::string seg_name;                    //!< label volume of a SEG container with several
 };
 
 std::string label_text(const std::vector<long long>& labels)
@@ -72,10 +73,12 @@ core::LabelImage3D object_mask(const core::AnyImage& image, const std::vector<lo
 
 // A container's label volume when it holds exactly one (lseg snake writes an image, the mask
 // and phi); otherwise any image format through libio.
-core::AnyImage read_input(const std::string& path)
+core::AnyImage read_input(const std::string& path, const std::string& name = {})
 {
     if (io::image_format(path) == io::ImageFormat::Hdf5) {
         const io::Hdf5Reader h5(path);
+        if (!name.empty())
+            return h5.read_labels(name).image;
         if (h5.labels().size() == 1)
             return h5.read_labels(h5.labels().front()).image;
         return io::read_hdf5_image(path);
@@ -84,10 +87,10 @@ core::AnyImage read_input(const std::string& path)
 }
 
 Input load(const std::string& path, const std::vector<long long>& labels, int slice, tools::Timings& timings,
-           const tools::Progress& progress)
+           const tools::Progress& progress, const std::string& name = {})
 {
     Input in{path, labels, {}, 0};
-    core::AnyImage image = timings.time("read " + path, [&] { return read_input(path); });
+    core::AnyImage image = timings.time("read " + path, [&] { return read_input(path, name); });
     std::visit([&](const auto& im) { core::validate_geometry(im, path); }, image);
     if (slice >= 0)
         image = std::visit(
@@ -194,6 +197,8 @@ Command add_eval(CLI::App& lseg)
     cmd->add_option("SEG", o->seg, "Segmentation (.mhd, .mha, .nii, .nii.gz, .h5 or a DICOM folder)")->required();
     cmd->add_option("REF", o->ref, "Reference segmentation on the same grid")->required();
     cmd->add_flag("--json", o->json, "Machine-readable output");
+    cmd->add_option("--seg-name", o->seg_name, "Label volume of a SEG container holding several (e.g. liver for "
+                                               "lseg liver's output)");
     cmd->add_option("--label", o->label, "The object is this value (or these, comma-separated) in SEG "
                                          "[default: every non-zero voxel]")
         ->delimiter(',');
@@ -205,7 +210,7 @@ Command add_eval(CLI::App& lseg)
         ->check(CLI::NonNegativeNumber);
     return {cmd, [o](const tools::Progress& progress, tools::RunRecord& record) -> int {
                 auto& timings = record.timings;
-                const Input seg = load(o->seg, o->label, o->slice, timings, progress);
+                const Input seg = load(o->seg, o->label, o->slice, timings, progress, o->seg_name);
                 const Input ref = load(o->ref, o->ref_label, o->slice, timings, progress);
                 if (!core::same_grid(seg.mask, ref.mask))
                     throw core::InvalidInputError(o->seg + " and " + o->ref +

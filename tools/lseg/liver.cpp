@@ -1,2 +1,180 @@
-// lseg liver (being written: issue 4).
+// lseg liver: the automatic liver pipeline (lobe/seg/liver.h) on a CT or MRI volume.
+#include "common/files.h"
+#include "common/picture.h"
 #include "lseg/commands.h"
+#include "lseg/shape_file.h"
+
+#include "lobe/io/hdf5.h"
+#include "lobe/io/image_io.h"
+#include "lobe/seg/liver.h"
+
+#include <filesystem>
+#include <iomanip>
+#include <memory>
+#include <sstream>
+
+namespace lobe::lseg {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct LiverOptions {
+    fs::path image, out, mask_out, png_dir, shape;
+    std::string image_name = "ct";
+    std::string convention = "sliver07";
+    bool no_start_slice = false, no_kmeans = false, no_rib_cage = false, no_shape_memory = false, no_3d_pass = false;
+    seg::LiverParams params;
+};
+
+core::ImageF read_volume(const LiverOptions& o)
+{
+    if (io::image_format(o.image) == io::ImageFormat::Hdf5)
+        return core::convert_image<float>(io::read_hdf5_image(o.image, o.image_name));
+    return core::convert_image<float>(io::read_image(o.image));
+}
+
+std::string fixed(double v, int digits)
+{
+    std::ostringstream s;
+    s << std::fixed << std::setprecision(digits) << v;
+    return s.str();
+}
+
+//! Axial (through the seed slice), coronal and sagittal (through the liver's centroid) pictures.
+void write_pictures(const fs::path& dir, const core::ImageF& image, const seg::LiverResult& r)
+{
+    fs::create_directories(dir);
+    double ci = 0, cj = 0, ck = 0, n = 0;
+    for (int k = 0; k < r.mask.size[2]; ++k)
+        for (int j = 0; j < r.mask.size[1]; ++j)
+            for (int i = 0; i < r.mask.size[0]; ++i)
+                if (r.mask.at(i, j, k)) {
+                    ci += i;
+                    cj += j;
+                    ck += k;
+                    n += 1;
+                }
+    const int centre[3] = {static_cast<int>(ci / n), static_cast<int>(cj / n), static_cast<int>(ck / n)};
+    tools::Overlay ov;
+    ov.labels = &r.mask;
+    ov.fill_opacity = 0.25;
+    ov.colours = {{1, {255, 200, 0}, "liver"}};
+    const std::pair<tools::SliceAxis, int> views[] = {
+        {tools::SliceAxis::Axial, centre[2]}, {tools::SliceAxis::Coronal, centre[1]}, {tools::SliceAxis::Sagittal, centre[0]}};
+    for (const auto& [axis, index] : views) {
+        tools::PictureParams pp;
+        pp.axis = axis;
+        pp.index = index;
+        pp.caption = "lseg liver: " + fixed(r.volume_ml, 0) + " mL";
+        tools::write_slice_png(dir / (std::string("liver-") + tools::slice_axis_name(axis) + ".png"), image, pp, {ov});
+    }
+}
+
+int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord& record)
+{
+    auto& timings = record.timings;
+    seg::LiverParams& p = o.params;
+    p.use_start_slice = !o.no_start_slice;
+    p.use_kmeans = !o.no_kmeans;
+    p.use_rib_cage = !o.no_rib_cage;
+    p.use_shape_memory = !o.no_shape_memory;
+    p.use_3d_pass = !o.no_3d_pass;
+    p.post.convention = o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
+
+    const core::ImageF volume = timings.time("read image", [&] { return read_volume(o); });
+    std::unique_ptr<seg::ShapeMemory> memory;
+    if (!o.shape.empty())
+        memory = std::make_unique<seg::ShapeMemory>(timings.time("read shape memory", [&] { return read_shape_memory(o.shape); }));
+
+    progress.message("segmenting the liver in " + std::to_string(volume.size[0]) + " x " + std::to_string(volume.size[1]) +
+                     " x " + std::to_string(volume.size[2]) + " voxels");
+    seg::LiverResult r;
+    try {
+        r = timings.time("segment", [&] {
+            return seg::segment_liver(volume, p, memory.get(), [&](const std::string& s) { progress.message(s); });
+        });
+    } catch (const core::InvalidInputError& e) {
+        throw core::InvalidInputError(o.image.string() + ": " + e.what());
+    }
+    int rejected = 0, recovered = 0, bounded = 0;
+    for (const auto& s : r.slices) {
+        rejected += s.rejected;
+        recovered += s.recovered;
+        bounded += !s.converged;
+    }
+    progress.message("liver: " + fixed(r.volume_ml, 1) + " mL on slices " + std::to_string(r.first_slice) + ".." +
+                     std::to_string(r.last_slice) + " (" + std::to_string(r.slices.size()) + " slices segmented, " +
+                     std::to_string(rejected) + " rejected by the shape memory)");
+
+    timings.time("write", [&] {
+        io::Provenance prov = record.provenance();
+        for (const auto& [name, seconds] : r.timings)
+            prov.timings.emplace_back("liver." + name, seconds);
+        auto param = [&](const std::string& k, const std::string& v) { prov.parameters.emplace_back(k, v); };
+        param("result.volume_ml", fixed(r.volume_ml, 3));
+        param("result.first_slice", std::to_string(r.first_slice));
+        param("result.last_slice", std::to_string(r.last_slice));
+        param("result.seed_slice", std::to_string(r.seed_slice));
+        param("result.start_slice.found", r.start.found ? "true" : "false");
+        param("result.start_slice", std::to_string(r.start.slice));
+        param("result.rotation_deg", fixed(r.start.rotation_deg, 1));
+        param("result.start_slice.message", r.start.message);
+        param("result.seed.message", r.seed.message);
+        param("result.liver_value", fixed(r.seed.liver_value, 1));
+        param("result.slices_segmented", std::to_string(r.slices.size()));
+        param("result.slices_rejected", std::to_string(rejected));
+        param("result.slices_recovered", std::to_string(recovered));
+        param("result.slices_iteration_bound", std::to_string(bounded));
+        param("components", std::string(p.use_start_slice ? "start-slice " : "") + (p.use_kmeans ? "kmeans " : "") +
+                                (p.use_rib_cage ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
+                                (p.use_3d_pass ? "3d-pass" : ""));
+        io::Hdf5Writer h5(o.out);
+        h5.write_image("image", volume);
+        h5.write_labels("liver", r.mask, {{1, "liver"}});
+        h5.write_labels("liver_slices", r.stacked, {{1, "liver (slice by slice, before the 3-D pass)"}});
+        h5.write_provenance(prov);
+        h5.commit();
+        if (!o.mask_out.empty())
+            io::write_image(o.mask_out, r.mask);
+        if (!o.png_dir.empty())
+            write_pictures(o.png_dir, volume, r);
+    });
+    progress.message("wrote " + o.out.string() + (o.mask_out.empty() ? "" : ", " + o.mask_out.string()) +
+                     (o.png_dir.empty() ? "" : ", pictures in " + o.png_dir.string()));
+    return tools::kExitOk;
+}
+
+} // namespace
+
+Command add_liver(CLI::App& lseg)
+{
+    auto o = std::make_shared<LiverOptions>();
+    CLI::App* cmd = lseg.add_subcommand(
+        "liver", "Automatic liver segmentation of a CT (or MRI) volume, no clicks: rotating template start slice, "
+                 "grid seed, CDSG slice by slice with K-means layers, rib cage and shape memory, 3-D pass "
+                 "(docs/algorithms/liver.md)");
+    cmd->add_option("IMAGE", o->image, "Volume: MetaImage, NIfTI, DICOM folder, or a lobe .h5 (see --image-name)")
+        ->required();
+    cmd->add_option("-o,--output", o->out, "Output container (.h5): image, labels/liver, labels/liver_slices, provenance")
+        ->required();
+    cmd->add_option("--image-name", o->image_name, "Image to read from a .h5 input")->capture_default_str();
+    cmd->add_option("--mask", o->mask_out, "Also write the liver mask as an image (e.g. .mhd or .nii.gz for 3D Slicer)");
+    cmd->add_option("--png", o->png_dir, "Also write axial, coronal and sagittal pictures of the contour into this folder");
+    cmd->add_option("--shape", o->shape, "Shape memory trained by `lseg train` (without it: a fixed growth bound)");
+    cmd->add_option("--convention", o->convention,
+                    "sliver07: vessels, tumours and the enclosed IVC are liver | parenchyma: they are not")
+        ->check(CLI::IsMember({"sliver07", "parenchyma"}))
+        ->capture_default_str();
+    cmd->add_flag("--no-start-slice", o->no_start_slice, "Ablation: no rotating-template start slice");
+    cmd->add_flag("--no-kmeans", o->no_kmeans, "Ablation: a fixed band around the seed's grey level, not K-means layers");
+    cmd->add_flag("--no-rib-cage", o->no_rib_cage, "Ablation: no rib cage ring");
+    cmd->add_flag("--no-shape-memory", o->no_shape_memory, "Ablation: ignore --shape");
+    cmd->add_flag("--no-3d-pass", o->no_3d_pass, "Ablation: keep the slice-by-slice stack");
+    cmd->add_option("--max-growth", o->params.max_growth_mm,
+                    "Without a shape memory: how far the contour may move out between slices [mm]")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
+    return {cmd, [o](const tools::Progress& progress, tools::RunRecord& record) { return run_liver(*o, progress, record); }};
+}
+
+} // namespace lobe::lseg

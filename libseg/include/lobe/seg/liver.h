@@ -50,12 +50,12 @@ struct LiverParams {
     double min_seed_area_mm2 = 25.0; //!< pieces of the shrunk contour smaller than this are dropped
     double keep_piece_fraction = 0.2; //!< pieces of the cut previous contour smaller than this
                                     //!< fraction of the largest piece do not start the next snake
-    double max_growth_mm = 6.0;     //!< the contour moves at most this far out from one slice to
+    double max_growth_mm = 4.0;     //!< the contour moves at most this far out from one slice to
                                     //!< the next (a leak is cut there)
     double window_margin_mm = 10.0; //!< the snake sees the previous contour's box widened by
                                     //!< max_growth_mm + this
     double seed_window_mm = 60.0;   //!< ... and the seed's box widened by this on the seed slice
-    int propagation_max_iterations = 300; //!< level-set bound on a propagated slice (the front
+    int propagation_max_iterations = 200; //!< level-set bound on a propagated slice (the front
                                     //!< travels only erosion_mm + max_growth_mm)
     bool parallel_directions = true; //!< propagate up and down on two threads
 
