@@ -3,7 +3,7 @@
 // learnt tables as two float64 images, and the provenance of the run that trained it
 // (schema: docs/algorithms/shape_memory.md, "File").
 
-#include "common/cli.h"
+#include "lobe/io/hdf5.h"
 #include "lobe/seg/shape_memory.h"
 
 #include <filesystem>
