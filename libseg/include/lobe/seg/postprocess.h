@@ -7,6 +7,8 @@
 
 #include "lobe/core/image3d.h"
 
+#include <cstddef>
+
 namespace lobe::seg {
 
 //! What the output counts as liver.
