@@ -116,20 +116,27 @@ core::LabelImage3D shrink(const core::LabelImage3D& m, double r_mm)
     return out;
 }
 
-//! Keeps the 8-connected pieces of a one-slice mask that have at least min_pixels and at least
-//! `fraction` of the largest piece's pixels.
-void keep_large_pieces(core::LabelImage3D& m, int min_pixels, double fraction)
+//! Keeps the 8-connected pieces of a one-slice mask that have at least min_pixels and either
+//! touch `rim` or have at least `fraction` of the largest piece's pixels: a small piece
+//! enclosed away from the rim is an organ that took the liver's place.
+void keep_liver_pieces(core::LabelImage3D& m, const core::LabelImage3D& rim, int min_pixels, double fraction)
 {
     cv::Mat bin(m.size[1], m.size[0], CV_8U, m.data.data());
     cv::Mat labels, stats, centroids;
     const int n = cv::connectedComponentsWithStats(bin, labels, stats, centroids, 8, CV_32S);
+    std::vector<std::uint8_t> touches(static_cast<std::size_t>(n), 0);
+    for (int j = 0; j < m.size[1]; ++j)
+        for (int i = 0; i < m.size[0]; ++i)
+            if (rim.at(i, j, 0))
+                touches[static_cast<std::size_t>(labels.at<int>(j, i))] = 1;
     int largest = 0;
     for (int c = 1; c < n; ++c)
         largest = std::max(largest, stats.at<int>(c, cv::CC_STAT_AREA));
-    const double need = std::max(double(min_pixels), fraction * largest);
     std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 0);
-    for (int c = 1; c < n; ++c)
-        keep[static_cast<std::size_t>(c)] = stats.at<int>(c, cv::CC_STAT_AREA) >= need ? 1 : 0;
+    for (int c = 1; c < n; ++c) {
+        const int area = stats.at<int>(c, cv::CC_STAT_AREA);
+        keep[static_cast<std::size_t>(c)] = area >= min_pixels && (touches[static_cast<std::size_t>(c)] || area >= fraction * largest);
+    }
     for (int j = 0; j < m.size[1]; ++j)
         for (int i = 0; i < m.size[0]; ++i) {
             auto& v = m.data[static_cast<std::size_t>(i) + static_cast<std::size_t>(m.size[0]) * static_cast<std::size_t>(j)];
@@ -201,6 +208,7 @@ struct Context {
     const LiverProgress& progress;
     const RibCageResult* ribs = nullptr;  //!< null: no rib cage
     const ShapeMemory* memory = nullptr;  //!< null: the fixed growth envelope
+    int top_slice = -1;                   //!< slices >= this hold no liver (the heart/lung start slice); -1 = none
     Tissue tissue;                        //!< the liver's grey level (seed slice)
 };
 
@@ -252,13 +260,18 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         const core::ImageF img_w = crop(img, ww);
         const core::LabelImage3D layer = liver_layer(c, gaussian_smooth(img_w, 1.0));
         const core::LabelImage3D lines = cut_lines(img_w, p.snake.edge);
-        core::LabelImage3D init_w = crop(shrink(templ, p.erosion_mm), ww);
+        const core::LabelImage3D shrunk = crop(shrink(templ, p.erosion_mm), ww);
+        // The rim: the shrunk previous contour's outermost two pixels.
+        core::LabelImage3D rim = shrink(shrunk, 2.0 * std::max(g.spacing[0], g.spacing[1]));
+        for (std::size_t i = 0; i < rim.data.size(); ++i)
+            rim.data[i] = shrunk.data[i] && !rim.data[i];
+        core::LabelImage3D init_w = shrunk;
         for (std::size_t i = 0; i < init_w.data.size(); ++i)
             init_w.data[i] = init_w.data[i] && layer.data[i] && !lines.data[i];
-        // The previous contour, cut along the slice's edges, falls into pieces; an organ that
-        // took the liver's place (the heart over the dome, the kidney under it) is a piece much
-        // smaller than the liver's, and is left out.
-        keep_large_pieces(init_w, static_cast<int>(std::ceil(p.min_seed_area_mm2 / px)), p.keep_piece_fraction);
+        // The previous contour, cut along the slice's edges, falls into pieces. An organ that
+        // took the liver's place (the heart over the dome, the kidney under it) is a small piece
+        // enclosed inside it, and is left out; a lobe cut off by a vessel reaches the rim.
+        keep_liver_pieces(init_w, rim, static_cast<int>(std::ceil(p.min_seed_area_mm2 / px)), p.keep_piece_fraction);
         if (count(init_w) == 0) {
             out.stop = true; // no liver-like tissue left under the previous contour: the liver ended
             return out;
@@ -343,7 +356,8 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     auto run = [&](int step, std::vector<SliceOutcome>& out) {
         const core::LabelImage3D* prev = &first.mask;
         double largest = first_area;
-        for (int k = seed_slice + step; k >= 0 && k < hu.size[2]; k += step) {
+        const int end = c.top_slice >= 0 ? std::min(hu.size[2], c.top_slice) : hu.size[2];
+        for (int k = seed_slice + step; k >= 0 && k < end; k += step) {
             SliceOutcome s = segment_slice(c, k, *prev, prev, largest);
             if (s.mask.data.empty())
                 break;
@@ -494,6 +508,10 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     Context c{hu, params, progress};
     c.ribs = params.use_rib_cage ? &ribs : nullptr;
     c.memory = params.use_shape_memory ? memory : nullptr;
+    // The start slice shows the heart between both lungs above the liver's dome (thesis L4616):
+    // the propagation upward ends below it.
+    if (start.found && start.slice > seed.slice)
+        c.top_slice = start.slice;
     // The liver's grey level and spread on the smoothed image the layers are cut from, under
     // the seed (this patient, this scan).
     const core::ImageF seed_img = core::axial_slice(hu, seed.slice);

@@ -503,7 +503,7 @@ LiverSeedResult seed_liver(const core::ImageF& vol, const StartSliceResult& star
     if (!finite_positive(p.cell_mm) || !std::isfinite(p.body_threshold) || !std::isfinite(p.liver_range_lo) ||
         !std::isfinite(p.liver_range_hi) || !(p.liver_range_hi > p.liver_range_lo) || !finite_positive(p.max_cell_sd) ||
         !finite_positive(p.homogeneity_factor) || !finite_positive(p.acceptance_sigma) || !(p.wall_margin_mm >= 0) ||
-        !finite_positive(p.search_depth_mm) || !(p.min_area_mm2 >= 0) ||
+        !finite_positive(p.search_depth_mm) || !(p.min_depth_mm >= 0) || !(p.min_area_mm2 >= 0) ||
         !(p.max_body_fraction > 0 && p.max_body_fraction <= 1) || p.erode_cells < 0)
         throw core::InvalidInputError(what + ": invalid parameters (cell_mm, max_cell_sd, homogeneity_factor, "
                                              "acceptance_sigma, search_depth_mm > 0; liver_range_hi > liver_range_lo; "
@@ -542,7 +542,13 @@ LiverSeedResult seed_liver(const core::ImageF& vol, const StartSliceResult& star
     // Slices about one cell apart: the seed's exact slice does not matter, the time does.
     const int stride = std::max(1, static_cast<int>(std::floor(p.cell_mm / vol.spacing[2])));
     std::vector<int> ks;
-    for (int k = with_start ? start.slice : k_hi; k >= k_lo && k <= k_hi; k += (with_start ? -up : -1) * stride)
+    int k_first = with_start ? start.slice : k_hi;
+    if (with_start) {
+        const int skip = start.slice - up * static_cast<int>(std::ceil(p.min_depth_mm / vol.spacing[2]));
+        if (skip >= k_lo && skip <= k_hi)
+            k_first = skip;
+    }
+    for (int k = k_first; k >= k_lo && k <= k_hi; k += (with_start ? -up : -1) * stride)
         ks.push_back(k);
     std::vector<SliceCells> per_slice(ks.size());
 #pragma omp parallel for schedule(dynamic)

@@ -53,8 +53,16 @@ TEST(LiverPropagation, ExperimentTruthSeed)
     if (std::getenv("LOBE_NO_RIBS")) lp.use_rib_cage = false;
     if (std::getenv("LOBE_NO_KMEANS")) lp.use_kmeans = false;
     if (std::getenv("LOBE_NO_3D")) lp.use_3d_pass = false;
+    if (const char* it = std::getenv("LOBE_ITERS")) lp.propagation_max_iterations = std::atoi(it);
+    if (const char* it = std::getenv("LOBE_GROWTH")) lp.max_growth_mm = std::atof(it);
     const auto r = std::getenv("LOBE_FULL") ? seg::segment_liver(hu, lp, nullptr, [](const std::string& s) { std::cerr << s << "\n"; })
                                            : seg::propagate_liver(hu, seed, k0, lp, [](const std::string& s) { std::cerr << s << "\n"; });
+    if (r.seed.found) {
+        const auto ts = core::axial_slice(truth, r.seed.slice);
+        std::size_t in = 0, all = 0;
+        for (std::size_t i = 0; i < ts.data.size(); ++i) if (r.seed.mask.data[i]) { ++all; in += ts.data[i]; }
+        std::cerr << "seed precision " << double(in) / double(all) << " of " << all << "\n";
+    }
     for (const auto& t : r.timings) std::cerr << t.first << " " << t.second << "\n";
     const auto m = seg::evaluate_segmentation(r.mask, truth);
     std::cerr << "Dice " << m.dice << " ASD " << m.surface.average << " slices " << r.first_slice << ".." << r.last_slice

@@ -84,6 +84,9 @@ struct LiverSeedParams {
     double acceptance_sigma = 1.0;     //!< accept cells with |mean - liver_value| <= this * noise sd
     double wall_margin_mm = 15.0;      //!< cells at least this deep inside the body
     double search_depth_mm = 150.0;    //!< with a start slice: slices at most this far below it
+    double min_depth_mm = 40.0;        //!< ... and at least this far (the heart sits in the dome
+                                       //!< there, behind a contact the snake may cross), when the
+                                       //!< volume reaches that deep
     double min_area_mm2 = 1500.0;      //!< smaller seeds are rejected (kidney, bowel, noise)
     double max_body_fraction = 0.6;    //!< larger seeds are rejected (no contrast: constant image)
     int erode_cells = 1;               //!< erosion of the accepted group, in cells (conservative)
