@@ -283,7 +283,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     // Only a window around the contour is modelled: the liver moves a few mm per slice, and
     // fields, edges and the level set cost in proportion to the pixels they cover.
     const core::LabelImage3D& around = previous ? templ : init;
-    const Window w = window_around(around, previous ? p.max_growth_mm + p.window_margin_mm : p.seed_window_mm);
+    const Window w = window_around(around, previous ? p.max_growth_per_mm * c.hu.spacing[2] + p.window_margin_mm : p.seed_window_mm);
     SnakeParams sp = p.snake;
     if (previous)
         sp.level_set.max_iterations = p.propagation_max_iterations;
@@ -304,17 +304,16 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             out.report.shape_score = check.score;
             if (!check.plausible) {
                 out.report.rejected = true;
+                out.report.shape_reason = check.reason;
                 const core::LabelImage3D env = plausible_envelope(*c.memory, templ, dz, largest_area_mm2);
                 for (std::size_t i = 0; i < out.mask.data.size(); ++i)
                     out.mask.data[i] = out.mask.data[i] && env.data[i];
                 check = check_slice(*c.memory, templ, out.mask, dz, largest_area_mm2);
                 out.report.recovered = check.plausible;
-                if (!check.plausible)
-                    out.stop = true; // even clipped it is not a liver slice (collapsed): the end
             }
         } else {
-            // Without a memory the outline may move at most max_growth_mm between slices.
-            const core::LabelImage3D envelope = grow(templ, p.max_growth_mm);
+            // Without a memory the outline may move at most max_growth_per_mm per mm of z.
+            const core::LabelImage3D envelope = grow(templ, p.max_growth_per_mm * c.hu.spacing[2]);
             for (std::size_t i = 0; i < out.mask.data.size(); ++i)
                 out.mask.data[i] = out.mask.data[i] && envelope.data[i];
         }
@@ -334,7 +333,7 @@ void report(const Context& c, const LiverSliceReport& r)
     s.precision(3);
     s << "slice " << r.slice << ": " << r.area_mm2 / 100.0 << " cm2, " << r.iterations << " iterations"
       << (r.converged ? "" : " (bound)") << (r.competition_used ? ", competition" : "")
-      << (r.rejected ? (r.recovered ? ", clipped by the shape memory" : ", rejected by the shape memory") : "") << ", "
+      << (r.rejected ? (r.recovered ? ", clipped by the shape memory (" : ", implausible even clipped (") + r.shape_reason + ")" : "") << ", "
       << r.seconds << " s";
     c.progress(s.str());
 }

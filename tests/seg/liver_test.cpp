@@ -1,4 +1,9 @@
-// Tests of the liver pipeline's driver (lobe/seg/liver.h) on phantoms.
+// The automatic liver pipeline (lobe/seg/liver.h) on phantoms it was not tuned on, and where it
+// must refuse. The pipeline was developed on the default phantom (0.7 x 0.7 x 2.5 mm, noise seed
+// 1); these tests use other spacings and noise seeds. The bounds are the measured values less a
+// margin for platform differences in floating point (the propagation is deterministic for a
+// given build); docs/algorithms/liver.md lists the measurements and the failure modes that cap
+// them (the phantom's heart wall is 5 HU from liver and touches the dome almost horizontally).
 #include "lobe/seg/liver.h"
 
 #include "lobe/core/errors.h"
@@ -8,8 +13,9 @@
 
 #include <gtest/gtest.h>
 
-#include <fstream>
 #include <iostream>
+#include <limits>
+#include <random>
 
 using namespace lobe;
 
@@ -31,51 +37,153 @@ core::ImageF to_float(const core::Image3D<std::int16_t>& ct)
     return f;
 }
 
-} // namespace
+struct Case {
+    core::ImageF hu;
+    core::LabelImage3D truth;
+    phantom::PhantomTruth info;
+};
 
-TEST(LiverPropagation, ExperimentTruthSeed)
+Case phantom_case(std::array<double, 3> spacing, std::uint64_t seed)
 {
     phantom::PhantomParams pp;
-    const auto ph = phantom::generate_phantom(pp);
-    const core::LabelImage3D truth = liver_truth(ph.labels);
-    const core::ImageF hu = to_float(ph.ct);
-    const int k0 = ph.truth.landmark("liver_centroid").index[2];
-    core::LabelImage3D sl = core::axial_slice(truth, k0);
-    // shrink 10 mm
-    core::LabelImage3D out(sl.geometry(), 0);
+    pp.spacing = spacing;
+    pp.size = phantom::size_for_spacing(spacing);
+    pp.seed = seed;
+    auto ph = phantom::generate_phantom(pp);
+    return {to_float(ph.ct), liver_truth(ph.labels), ph.truth};
+}
+
+double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth_slice)
+{
+    std::size_t in = 0, all = 0;
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        if (m.data[i]) {
+            ++all;
+            in += truth_slice.data[i] ? 1 : 0;
+        }
+    return all ? double(in) / double(all) : 0.0;
+}
+
+} // namespace
+
+// 1.4 x 1.4 x 5 mm, noise seed 3: coarse slices make the heart and kidney contacts blurrier.
+// Measured: Dice 0.82, ASD 6.6 mm (the heart above the dome and the kidney under it leak in).
+TEST(LiverPipeline, CoarsePhantomIsFound)
+{
+    const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
+    const seg::LiverResult r = seg::segment_liver(c.hu);
+    ASSERT_TRUE(r.seed.found) << r.seed.message;
+    // The seed must be liver: the whole pipeline trusts it.
+    EXPECT_GE(precision_in(r.seed.mask, core::axial_slice(c.truth, r.seed.slice)), 0.99);
+    EXPECT_TRUE(r.start.found) << r.start.message;
+    const auto m = seg::evaluate_segmentation(r.mask, c.truth);
+    std::cerr << "coarse phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd << " %\n";
+    EXPECT_GE(m.dice, 0.78);
+    EXPECT_LE(m.surface.average, 8.0);
+    EXPECT_LE(std::abs(m.rvd), 50.0);
+    // The propagation stops below the start slice (the heart/lung slice).
+    EXPECT_LT(r.last_slice, r.start.slice);
+}
+
+// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.875, ASD 4.9 mm.
+TEST(LiverPipeline, FinePhantomIsFound)
+{
+    const Case c = phantom_case({0.9, 0.9, 3.0}, 5);
+    const seg::LiverResult r = seg::segment_liver(c.hu);
+    const auto m = seg::evaluate_segmentation(r.mask, c.truth);
+    std::cerr << "fine phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd << " %\n";
+    EXPECT_GE(m.dice, 0.84);
+    EXPECT_LE(m.surface.average, 6.5);
+    // Every slice of the propagation is reported once, in ascending order.
+    for (std::size_t i = 1; i < r.slices.size(); ++i)
+        EXPECT_EQ(r.slices[i].slice, r.slices[i - 1].slice + 1);
+}
+
+// The propagation alone, from the true liver of the centroid slice shrunk by 10 mm: what the
+// slice-by-slice driver achieves when the seed is right. Measured: Dice 0.81 (no rib cage, no
+// start slice: the heart and kidney leaks are larger than in the whole pipeline).
+TEST(LiverPipeline, PropagationFromAKnownSeed)
+{
+    const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
+    const int k0 = c.info.landmark("liver_centroid").index[2];
+    const core::LabelImage3D sl = core::axial_slice(c.truth, k0);
+    core::LabelImage3D outside(sl.geometry(), 0);
     for (std::size_t i = 0; i < sl.data.size(); ++i)
-        out.data[i] = sl.data[i] ? 0 : 1;
-    const auto d = seg::euclidean_distance(out);
+        outside.data[i] = sl.data[i] ? 0 : 1;
+    const core::ImageF d = seg::euclidean_distance(outside);
     core::LabelImage3D seed(sl.geometry(), 0);
     for (std::size_t i = 0; i < sl.data.size(); ++i)
-        seed.data[i] = sl.data[i] && d.data[i] > 10 ? 1 : 0;
-    seg::LiverParams lp;
-    if (std::getenv("LOBE_NO_RIBS")) lp.use_rib_cage = false;
-    if (std::getenv("LOBE_NO_KMEANS")) lp.use_kmeans = false;
-    if (std::getenv("LOBE_NO_3D")) lp.use_3d_pass = false;
-    if (const char* it = std::getenv("LOBE_ITERS")) lp.propagation_max_iterations = std::atoi(it);
-    if (const char* it = std::getenv("LOBE_GROWTH")) lp.max_growth_mm = std::atof(it);
-    const auto r = std::getenv("LOBE_FULL") ? seg::segment_liver(hu, lp, nullptr, [](const std::string& s) { std::cerr << s << "\n"; })
-                                           : seg::propagate_liver(hu, seed, k0, lp, [](const std::string& s) { std::cerr << s << "\n"; });
-    if (r.seed.found) {
-        const auto ts = core::axial_slice(truth, r.seed.slice);
-        std::size_t in = 0, all = 0;
-        for (std::size_t i = 0; i < ts.data.size(); ++i) if (r.seed.mask.data[i]) { ++all; in += ts.data[i]; }
-        std::cerr << "seed precision " << double(in) / double(all) << " of " << all << "\n";
+        seed.data[i] = sl.data[i] && d.data[i] > 10.0 ? 1 : 0;
+    const seg::LiverResult r = seg::propagate_liver(c.hu, seed, k0);
+    const auto m = seg::evaluate_segmentation(r.mask, c.truth);
+    std::cerr << "propagation from a known seed: Dice " << m.dice << "\n";
+    EXPECT_GE(m.dice, 0.76);
+    EXPECT_LE(r.first_slice, k0);
+    EXPECT_GE(r.last_slice, k0);
+}
+
+// Volumes it cannot handle get a clear error, never a garbage mask.
+TEST(LiverPipeline, RefusesWhatItCannotSegment)
+{
+    core::ImageGeometry g;
+    g.size = {64, 64, 12};
+    g.spacing = {3.0, 3.0, 5.0};
+    // Constant image (no contrast at all).
+    EXPECT_THROW(seg::segment_liver(core::ImageF(g, 0.f)), seg::LiverNotFoundError);
+    // Uniform noise over the HU range: no homogeneous liver-like tissue.
+    core::ImageF noise(g);
+    std::mt19937 rng(4);
+    std::uniform_real_distribution<float> u(-1000.f, 1000.f);
+    for (auto& v : noise.data)
+        v = u(rng);
+    EXPECT_THROW(seg::segment_liver(noise), seg::LiverNotFoundError);
+    // A few slices only: a volume, not a slice, is needed.
+    core::ImageGeometry thin = g;
+    thin.size[2] = 3;
+    try {
+        seg::segment_liver(core::ImageF(thin, 0.f));
+        FAIL() << "three slices were accepted";
+    } catch (const seg::LiverNotFoundError&) {
+        FAIL() << "three slices should be refused as too few, not searched";
+    } catch (const core::InvalidInputError& e) {
+        EXPECT_NE(std::string(e.what()).find("slices"), std::string::npos) << e.what();
     }
-    for (const auto& t : r.timings) std::cerr << t.first << " " << t.second << "\n";
-    const auto m = seg::evaluate_segmentation(r.mask, truth);
-    std::cerr << "Dice " << m.dice << " ASD " << m.surface.average << " slices " << r.first_slice << ".." << r.last_slice
-              << " time " << r.timings[0].second << "\n";
-    int tk0 = 1000, tk1 = -1;
-    for (int k = 0; k < truth.size[2]; ++k)
-        for (int j = 0; j < truth.size[1]; ++j)
-            for (int i = 0; i < truth.size[0]; ++i)
-                if (truth.at(i, j, k)) { tk0 = std::min(tk0, k); tk1 = std::max(tk1, k); }
-    if (const char* dump = std::getenv("LOBE_LIVER_DUMP")) {
-        std::ofstream(std::string(dump) + "/ct.raw", std::ios::binary).write(reinterpret_cast<const char*>(ph.ct.data.data()), std::streamsize(ph.ct.data.size() * 2));
-        std::ofstream(std::string(dump) + "/seg.raw", std::ios::binary).write(reinterpret_cast<const char*>(r.mask.data.data()), std::streamsize(r.mask.data.size()));
-        std::ofstream(std::string(dump) + "/labels.raw", std::ios::binary).write(reinterpret_cast<const char*>(ph.labels.data.data()), std::streamsize(ph.labels.data.size()));
-    }
-    std::cerr << "truth slices " << tk0 << ".." << tk1 << "\n";
+    // Non-finite values.
+    core::ImageF nan(g, 0.f);
+    nan.data[5] = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_THROW(seg::segment_liver(nan), core::InvalidInputError);
+}
+
+// Only the slices below the liver (pelvis-like: bowel, kidneys' lower poles): no liver.
+TEST(LiverPipeline, NoLiverBelowTheLiver)
+{
+    const Case c = phantom_case({2.8, 2.8, 5.0}, 2);
+    int first = c.truth.size[2];
+    for (int k = 0; k < c.truth.size[2] && first == c.truth.size[2]; ++k)
+        for (int j = 0; j < c.truth.size[1] && first == c.truth.size[2]; ++j)
+            for (int i = 0; i < c.truth.size[0]; ++i)
+                if (c.truth.at(i, j, k)) {
+                    first = k;
+                    break;
+                }
+    ASSERT_GE(first, 6) << "the phantom's field of view should reach below the liver";
+    core::ImageGeometry g = c.hu.geometry();
+    g.size[2] = first - 1; // slices strictly below the liver
+    core::ImageF below(g);
+    std::copy(c.hu.data.begin(), c.hu.data.begin() + static_cast<std::ptrdiff_t>(g.voxel_count()), below.data.begin());
+    EXPECT_THROW(seg::segment_liver(below), seg::LiverNotFoundError);
+}
+
+TEST(LiverPipeline, PropagationChecksItsSeed)
+{
+    core::ImageGeometry g;
+    g.size = {32, 32, 8};
+    const core::ImageF img(g, 100.f);
+    core::ImageGeometry gs = g;
+    gs.size[2] = 1;
+    EXPECT_THROW(seg::propagate_liver(img, core::LabelImage3D(gs, 0), 3), core::InvalidInputError); // empty
+    EXPECT_THROW(seg::propagate_liver(img, core::LabelImage3D(gs, 1), 9), core::InvalidInputError); // off the grid
+    core::ImageGeometry wrong = gs;
+    wrong.size[0] = 16;
+    EXPECT_THROW(seg::propagate_liver(img, core::LabelImage3D(wrong, 1), 3), core::InvalidInputError);
 }

@@ -170,8 +170,8 @@ Command add_liver(CLI::App& lseg)
     cmd->add_flag("--no-rib-cage", o->no_rib_cage, "Ablation: no rib cage ring");
     cmd->add_flag("--no-shape-memory", o->no_shape_memory, "Ablation: ignore --shape");
     cmd->add_flag("--no-3d-pass", o->no_3d_pass, "Ablation: keep the slice-by-slice stack");
-    cmd->add_option("--max-growth", o->params.max_growth_mm,
-                    "Without a shape memory: how far the contour may move out between slices [mm]")
+    cmd->add_option("--max-growth", o->params.max_growth_per_mm,
+                    "Without a shape memory: how far the contour may move out between slices, per mm of slice gap")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
     return {cmd, [o](const tools::Progress& progress, tools::RunRecord& record) { return run_liver(*o, progress, record); }};

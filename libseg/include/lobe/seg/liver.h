@@ -33,6 +33,7 @@ struct LiverSliceReport {
     bool rejected = false;      //!< the shape memory rejected the snake's contour
     bool recovered = false;     //!< ... and its clip to the memory's envelope was accepted
     double shape_score = 0;     //!< the memory's score (<= 1 plausible; 0 without a memory)
+    std::string shape_reason;   //!< why the memory rejected it
     double seconds = 0;
 };
 
@@ -50,13 +51,14 @@ struct LiverParams {
     double min_seed_area_mm2 = 25.0; //!< pieces of the shrunk contour smaller than this are dropped
     double keep_piece_fraction = 0.2; //!< pieces of the cut previous contour smaller than this
                                     //!< fraction of the largest piece do not start the next snake
-    double max_growth_mm = 4.0;     //!< the contour moves at most this far out from one slice to
-                                    //!< the next (a leak is cut there)
+    double max_growth_per_mm = 1.6; //!< without a shape memory, the contour moves out at most
+                                    //!< this many mm per mm of slice gap (4 mm at 2.5 mm slices);
+                                    //!< a leak is cut there
     double window_margin_mm = 10.0; //!< the snake sees the previous contour's box widened by
-                                    //!< max_growth_mm + this
+                                    //!< max_growth_per_mm * dz + this
     double seed_window_mm = 60.0;   //!< ... and the seed's box widened by this on the seed slice
     int propagation_max_iterations = 200; //!< level-set bound on a propagated slice (the front
-                                    //!< travels only erosion_mm + max_growth_mm)
+                                    //!< travels only erosion_mm + the growth bound)
     bool parallel_directions = true; //!< propagate up and down on two threads
 
     // The pipeline's components (segment_liver); each can be switched off for the ablation.
