@@ -1,1 +1,109 @@
-// Tests of lseg liver (being written: issue 4).
+// lseg liver run as a program: outputs, provenance, pictures, refusals.
+#include "lobe/io/hdf5.h"
+#include "lobe/io/image_io.h"
+
+#include "common/run_tool.h"
+#include "common/test_data.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+using namespace lobe;
+namespace fs = std::filesystem;
+
+namespace {
+
+test::ToolRun run_lseg(const std::string& args, const fs::path& scratch)
+{
+    return test::run_tool(LSEG_EXE, args, scratch);
+}
+
+std::string q(const fs::path& p)
+{
+    return test::shell_quote(p.string());
+}
+
+std::string parameter(const io::Provenance& p, const std::string& key)
+{
+    for (const auto& [k, v] : p.parameters)
+        if (k == key)
+            return v;
+    return {};
+}
+
+} // namespace
+
+// A coarse phantom (2.1 x 2.1 x 5 mm: about a second) through the whole command: the container
+// holds the image, the liver and the slice stack with provenance; --mask and --png are written;
+// `lseg eval --seg-name liver` reads the result back. The Dice bound is loose (measured 0.83 on
+// this grid): tests/seg/liver_test.cpp holds the accuracy checks, this one the plumbing.
+TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
+{
+    const auto dir = test::scratch_dir();
+    auto r = test::run_tool(LPHANTOM_EXE, q(dir / "ph") + " --spacing 2.1,2.1,5 --seed 4 --quiet", dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto out = dir / "liver.h5";
+    r = run_lseg("liver " + q(dir / "ph" / "ct.mhd") + " -o " + q(out) + " --mask " + q(dir / "liver.mhd") + " --png " +
+                     q(dir / "pictures"),
+                 dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("start slice"), std::string::npos) << r.err; // progress on stderr
+    EXPECT_NE(r.err.find("liver: "), std::string::npos) << r.err;
+    ASSERT_TRUE(fs::exists(out));
+    EXPECT_TRUE(fs::exists(dir / "liver.mhd"));
+    for (const char* view : {"axial", "coronal", "sagittal"})
+        EXPECT_TRUE(fs::exists(dir / "pictures" / (std::string("liver-") + view + ".png"))) << view;
+
+    const io::Hdf5Reader h5(out);
+    const auto labels = h5.labels();
+    EXPECT_NE(std::find(labels.begin(), labels.end(), "liver"), labels.end());
+    EXPECT_NE(std::find(labels.begin(), labels.end(), "liver_slices"), labels.end());
+    const auto prov = h5.provenance();
+    ASSERT_FALSE(prov.empty());
+    EXPECT_FALSE(parameter(prov.back(), "result.volume_ml").empty());
+    EXPECT_EQ(parameter(prov.back(), "result.start_slice.found"), "true");
+    bool timed = false;
+    for (const auto& [name, seconds] : prov.back().timings)
+        timed = timed || (name == "liver.propagate" && seconds > 0);
+    EXPECT_TRUE(timed);
+
+    r = run_lseg("eval " + q(out) + " " + q(dir / "ph" / "labels.mhd") + " --seg-name liver --ref-label 1,2,3,4 --json",
+                 dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto dice_at = r.out.find("\"dice\"");
+    ASSERT_NE(dice_at, std::string::npos) << r.out;
+    EXPECT_GE(std::stod(r.out.substr(r.out.find(':', dice_at) + 1)), 0.7) << r.out;
+}
+
+// Inputs it cannot handle: a message naming the file, exit code 2, and no output left behind.
+TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
+{
+    const auto dir = test::scratch_dir();
+    core::ImageGeometry g;
+    g.size = {48, 48, 3};
+    g.spacing = {4, 4, 5};
+    io::write_image(dir / "thin.mhd", core::Image3D<std::int16_t>(g, std::int16_t{40}));
+    auto r = run_lseg("liver " + q(dir / "thin.mhd") + " -o " + q(dir / "a.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("thin.mhd"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("slices"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "a.h5"));
+
+    g.size[2] = 12;
+    io::write_image(dir / "flat.mhd", core::Image3D<std::int16_t>(g, std::int16_t{40}));
+    r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "b.h5") + " --mask " + q(dir / "b.mhd"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("flat.mhd"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("no liver found"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "b.h5"));
+    EXPECT_FALSE(fs::exists(dir / "b.mhd"));
+
+    r = run_lseg("liver " + q(dir / "missing.mhd") + " -o " + q(dir / "c.h5"), dir);
+    EXPECT_NE(r.exit_code, 0);
+    EXPECT_FALSE(fs::exists(dir / "c.h5"));
+
+    r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "d.h5") + " --shape " + q(dir / "flat.mhd"), dir);
+    EXPECT_EQ(r.exit_code, 2) << r.err; // not a shape memory file
+    EXPECT_FALSE(fs::exists(dir / "d.h5"));
+}
