@@ -22,7 +22,7 @@ struct LiverOptions {
     fs::path image, out, mask_out, png_dir, shape;
     std::string image_name = "ct";
     std::string convention = "sliver07";
-    bool no_start_slice = false, no_kmeans = false, no_rib_cage = false, no_shape_memory = false, no_3d_pass = false;
+    bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false, no_shape_memory = false, no_3d_pass = false;
     seg::LiverParams params;
 };
 
@@ -79,6 +79,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_rib_cage = !o.no_rib_cage;
     p.use_shape_memory = !o.no_shape_memory;
     p.use_3d_pass = !o.no_3d_pass;
+    if (o.no_competition)
+        p.snake.competition = seg::CompetitionMode::Off;
     p.post.convention = o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
 
     const core::ImageF volume = timings.time("read image", [&] { return read_volume(o); });
@@ -127,7 +129,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_iteration_bound", std::to_string(bounded));
         param("components", std::string(p.use_start_slice ? "start-slice " : "") + (p.use_kmeans ? "kmeans " : "") +
                                 (p.use_rib_cage ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
-                                (p.use_3d_pass ? "3d-pass" : ""));
+                                (p.use_3d_pass ? "3d-pass " : "") +
+                                (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", volume);
         h5.write_labels("liver", r.mask, {{1, "liver"}});
@@ -166,6 +169,7 @@ Command add_liver(CLI::App& lseg)
         ->check(CLI::IsMember({"sliver07", "parenchyma"}))
         ->capture_default_str();
     cmd->add_flag("--no-start-slice", o->no_start_slice, "Ablation: no rotating-template start slice");
+    cmd->add_flag("--no-competition", o->no_competition, "Ablation: no energy competition between slices");
     cmd->add_flag("--no-kmeans", o->no_kmeans, "Ablation: a fixed band around the seed's grey level, not K-means layers");
     cmd->add_flag("--no-rib-cage", o->no_rib_cage, "Ablation: no rib cage ring");
     cmd->add_flag("--no-shape-memory", o->no_shape_memory, "Ablation: ignore --shape");
