@@ -99,7 +99,7 @@ core::LabelImage3D grow(const core::LabelImage3D& m, double r_mm)
     const core::ImageF d = euclidean_distance(m);
     core::LabelImage3D out(m.geometry(), 0);
     for (std::size_t i = 0; i < m.data.size(); ++i)
-        out.data[i] = d.data[i] <= r_mm ? 1 : 0;
+        out.data[i] = double(d.data[i]) <= r_mm ? 1 : 0;
     return out;
 }
 
@@ -112,7 +112,7 @@ core::LabelImage3D shrink(const core::LabelImage3D& m, double r_mm)
     const core::ImageF d = euclidean_distance(outside);
     core::LabelImage3D out(m.geometry(), 0);
     for (std::size_t i = 0; i < m.data.size(); ++i)
-        out.data[i] = m.data[i] && d.data[i] > r_mm ? 1 : 0;
+        out.data[i] = m.data[i] && double(d.data[i]) > r_mm ? 1 : 0;
     return out;
 }
 
@@ -174,8 +174,8 @@ Tissue tissue_under(const core::ImageF& smoothed, const core::LabelImage3D& m)
     std::size_t n = 0;
     for (std::size_t i = 0; i < m.data.size(); ++i)
         if (m.data[i]) {
-            s += smoothed.data[i];
-            s2 += double(smoothed.data[i]) * smoothed.data[i];
+            s += double(smoothed.data[i]);
+            s2 += double(smoothed.data[i]) * double(smoothed.data[i]);
             ++n;
         }
     Tissue t;
@@ -191,7 +191,7 @@ core::LabelImage3D band_of(const core::ImageF& smoothed, const Tissue& t, double
     core::LabelImage3D out(smoothed.geometry(), 0);
     const double lo = t.mean - alpha * t.sigma, hi = t.mean + alpha * t.sigma;
     for (std::size_t i = 0; i < out.data.size(); ++i)
-        out.data[i] = smoothed.data[i] >= lo && smoothed.data[i] <= hi ? 1 : 0;
+        out.data[i] = double(smoothed.data[i]) >= lo && double(smoothed.data[i]) <= hi ? 1 : 0;
     return out;
 }
 
@@ -451,7 +451,7 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
         throw core::InvalidInputError("propagate_liver: the seed must be one slice of the image's size");
     if (count(seed) == 0)
         throw core::InvalidInputError("propagate_liver: the seed is empty");
-    Context c{hu, params, progress};
+    Context c{hu, params, progress, nullptr, nullptr, -1, {}};
     const core::ImageF seed_img = core::axial_slice(hu, seed_slice);
     c.tissue = tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed, seed_img.geometry()));
     LiverResult r = propagate(c, seed, seed_slice);
@@ -504,7 +504,7 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     }
     lap("rib cage", t);
 
-    Context c{hu, params, progress};
+    Context c{hu, params, progress, nullptr, nullptr, -1, {}};
     c.ribs = params.use_rib_cage ? &ribs : nullptr;
     c.memory = params.use_shape_memory ? memory : nullptr;
     // The start slice shows the heart between both lungs above the liver's dome (thesis L4616):

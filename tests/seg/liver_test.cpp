@@ -113,7 +113,7 @@ TEST(LiverPipeline, PropagationFromAKnownSeed)
     const core::ImageF d = seg::euclidean_distance(outside);
     core::LabelImage3D seed(sl.geometry(), 0);
     for (std::size_t i = 0; i < sl.data.size(); ++i)
-        seed.data[i] = sl.data[i] && d.data[i] > 10.0 ? 1 : 0;
+        seed.data[i] = sl.data[i] && double(d.data[i]) > 10.0 ? 1 : 0;
     const seg::LiverResult r = seg::propagate_liver(c.hu, seed, k0);
     const auto m = seg::evaluate_segmentation(r.mask, c.truth);
     std::cerr << "propagation from a known seed: Dice " << m.dice << "\n";
