@@ -371,4 +371,17 @@ core::ImageF energy_competition(const core::ImageF& edge, const core::LabelImage
     return out;
 }
 
+BinaryEdgeParams noise_adapted(const core::ImageF& f, const BinaryEdgeParams& base, double noise_factor)
+{
+    std::vector<float> v(f.data.begin(), f.data.end());
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    const double median = *mid;
+    BinaryEdgeParams p = base;
+    p.low = std::max(base.low, noise_factor * median);
+    p.high = std::max(base.high, 2.0 * noise_factor * median);
+    p.high = std::max(p.high, p.low);
+    return p;
+}
+
 } // namespace lobe::seg

@@ -150,13 +150,7 @@ void keep_liver_pieces(core::LabelImage3D& m, const core::LabelImage3D& rim, int
 core::LabelImage3D cut_lines(const core::ImageF& img, const EdgeMapParams& ep)
 {
     const EdgeMapResult e = edge_map(img, ep);
-    std::vector<float> v(e.edge.data.begin(), e.edge.data.end());
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    BinaryEdgeParams bp;
-    bp.low = std::max(bp.low, 3.0 * double(*mid));
-    bp.high = std::max(bp.high, 6.0 * double(*mid));
-    core::LabelImage3D edges = binary_edges(e.edge, bp);
+    core::LabelImage3D edges = binary_edges(e.edge, noise_adapted(e.edge, BinaryEdgeParams{}, 3.0));
     cv::Mat m(edges.size[1], edges.size[0], CV_8U, edges.data.data());
     cv::dilate(m, m, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
     return edges;

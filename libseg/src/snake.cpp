@@ -152,22 +152,6 @@ core::ImageF non_maximum_suppression(const core::ImageF& f, const core::ImageF& 
     return out;
 }
 
-//! Hysteresis thresholds raised above the noise: f's median over the image is the gradient
-//! of noise in flat regions (most of an image is flat), and Canny's rule of thumb puts the
-//! thresholds a few noise levels up. Without noise the configured thresholds stand.
-BinaryEdgeParams noise_adapted(const core::ImageF& f, const BinaryEdgeParams& base, double noise_factor)
-{
-    std::vector<float> v(f.data.begin(), f.data.end());
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    const double median = *mid;
-    BinaryEdgeParams p = base;
-    p.low = std::max(base.low, noise_factor * median);
-    p.high = std::max(base.high, 2.0 * noise_factor * median);
-    p.high = std::max(p.high, p.low);
-    return p;
-}
-
 //! A stopping function of the (competition-weighted) edge map: 1 / (1 + (|∇I| / k)^power),
 //! with |∇I| = f * scale since f is |∇I| normalised by `scale`. The GAC's g and CDSG's pressure
 //! scaling are both this, with their own k (and CDSG's exponent).

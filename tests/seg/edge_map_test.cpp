@@ -28,7 +28,7 @@ double sum(const core::ImageF& im)
 {
     double s = 0.0;
     for (float v : im.data)
-        s += v;
+        s += double(v);
     return s;
 }
 

@@ -6,6 +6,7 @@
 // them (the phantom's heart wall is 5 HU from liver and touches the dome almost horizontally).
 #include "lobe/seg/liver.h"
 
+#include "lobe/core/any_image.h"
 #include "lobe/core/errors.h"
 #include "lobe/seg/distance_transform.h"
 #include "lobe/seg/metrics.h"
@@ -29,14 +30,6 @@ core::LabelImage3D liver_truth(const core::LabelImage3D& labels)
     return m;
 }
 
-core::ImageF to_float(const core::Image3D<std::int16_t>& ct)
-{
-    core::ImageF f(ct.geometry());
-    for (std::size_t i = 0; i < f.data.size(); ++i)
-        f.data[i] = ct.data[i];
-    return f;
-}
-
 struct Case {
     core::ImageF hu;
     core::LabelImage3D truth;
@@ -50,7 +43,7 @@ Case phantom_case(std::array<double, 3> spacing, std::uint64_t seed)
     pp.size = phantom::size_for_spacing(spacing);
     pp.seed = seed;
     auto ph = phantom::generate_phantom(pp);
-    return {to_float(ph.ct), liver_truth(ph.labels), ph.truth};
+    return {core::convert_image<float>(ph.ct), liver_truth(ph.labels), ph.truth};
 }
 
 double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth_slice)

@@ -3,6 +3,7 @@
 // without ribs, the helpers, speed on a 512 x 512 x 80 volume, and bad input.
 #include "lobe/seg/rib_cage.h"
 
+#include "lobe/core/any_image.h"
 #include "lobe/core/errors.h"
 #include "lobe/seg/distance_transform.h"
 #include "lobe/seg/snake.h"
@@ -286,14 +287,6 @@ TEST(RibCage, A512x512x80VolumeTakesWellUnderTwoSeconds)
 #ifdef LOBE_HAVE_PHANTOM
 namespace {
 
-core::ImageF to_float(const core::Image3D<std::int16_t>& ct)
-{
-    core::ImageF hu(ct.geometry());
-    for (std::size_t i = 0; i < hu.data.size(); ++i)
-        hu.data[i] = ct.data[i];
-    return hu;
-}
-
 phantom::PhantomResult coarse_phantom(double wall_hu = -1)
 {
     phantom::PhantomParams pp;
@@ -318,7 +311,7 @@ bool liver(int l) { return l >= 1 && l <= 4; }
 TEST(RibCage, PhantomLiverInsideFatOutside)
 {
     const auto ph = coarse_phantom();
-    const core::ImageF hu = to_float(ph.ct);
+    const core::ImageF hu = core::convert_image<float>(ph.ct);
     const auto r = seg::rib_cage(hu);
     core::LabelImage3D air(hu.geometry(), 0);
     for (std::size_t q = 0; q < air.data.size(); ++q)
@@ -368,7 +361,7 @@ TEST(RibCage, PhantomLiverInsideFatOutside)
 TEST(RibCage, SnakeLeaksLessWithTheRing)
 {
     const auto ph = coarse_phantom(90.0);
-    const core::ImageF hu = to_float(ph.ct);
+    const core::ImageF hu = core::convert_image<float>(ph.ct);
     const auto rc = seg::rib_cage(hu);
     double total_without = 0, total_with = 0;
     for (int k : {16, 20, 24}) {

@@ -1,5 +1,6 @@
 // Tests of lobe/seg/shape_memory.h: trained on phantoms at two spacings, checked on a third
 // phantom (another spacing and noise seed) with true, leaking and collapsed slices.
+#include "lobe/core/any_image.h"
 #include "lobe/seg/shape_memory.h"
 
 #include "common/expect_error.h"
@@ -24,14 +25,6 @@ core::LabelImage3D mask_of(const core::LabelImage3D& labels, std::initializer_li
             if (labels.data[i] == v)
                 m.data[i] = 1;
     return m;
-}
-
-core::ImageF to_float(const core::Image3D<std::int16_t>& ct)
-{
-    core::ImageF f(ct.geometry());
-    for (std::size_t i = 0; i < f.data.size(); ++i)
-        f.data[i] = ct.data[i];
-    return f;
 }
 
 phantom::PhantomResult make_phantom(std::array<double, 3> spacing, std::uint64_t seed)
@@ -79,8 +72,8 @@ const Data& data()
         p->train_a = make_phantom({1.4, 1.4, 5.0}, 3);
         p->train_b = make_phantom({2.0, 2.0, 2.5}, 4);
         p->check = make_phantom({1.2, 1.2, 4.0}, 9);
-        p->hu_a = to_float(p->train_a.ct);
-        p->hu_b = to_float(p->train_b.ct);
+        p->hu_a = core::convert_image<float>(p->train_a.ct);
+        p->hu_b = core::convert_image<float>(p->train_b.ct);
         p->liver_a = mask_of(p->train_a.labels, {1, 2, 3, 4});
         p->liver_b = mask_of(p->train_b.labels, {1, 2, 3, 4});
         p->liver_c = mask_of(p->check.labels, {1, 2, 3, 4});
@@ -276,8 +269,9 @@ TEST(ShapeMemory, LeaksAndCollapsesAreRejected)
             ++grow_n;
             const auto cg = seg::check_slice(d.memory, a, grow_one_side(b, -g, 0), dz, st.largest);
             grow_rej += !cg.plausible;
-            if (!cg.plausible)
+            if (!cg.plausible) {
                 EXPECT_NE(cg.reason, "");
+            }
         }
         if (r >= 30) {
             ++col_n;

@@ -56,6 +56,12 @@ struct BinaryEdgeParams {
 //! The binary edge map that seeds the chessboard distance (1 = edge).
 core::LabelImage3D binary_edges(const core::ImageF& edge, const BinaryEdgeParams& params = {});
 
+//! Hysteresis thresholds raised above the noise: f's median over the image is the gradient of
+//! noise in flat regions (most of an image is flat), and Canny's rule of thumb puts the
+//! thresholds a few noise levels up: low = max(base.low, factor * median), high =
+//! max(base.high, 2 * factor * median, low). Without noise the configured thresholds stand.
+BinaryEdgeParams noise_adapted(const core::ImageF& edge, const BinaryEdgeParams& base, double noise_factor);
+
 //! Energy-competition weight G when competition is on (thesis L3273-3295; 0.2 is too low).
 inline constexpr float kCompetitionOn = 0.3f;
 
