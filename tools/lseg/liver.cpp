@@ -2,6 +2,7 @@
 #include "common/files.h"
 #include "common/picture.h"
 #include "lseg/commands.h"
+#include "lseg/input.h"
 #include "lseg/shape_file.h"
 
 #include "lobe/io/hdf5.h"
@@ -25,13 +26,6 @@ struct LiverOptions {
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false, no_shape_memory = false, no_3d_pass = false;
     seg::LiverParams params;
 };
-
-core::ImageF read_volume(const LiverOptions& o)
-{
-    if (io::image_format(o.image) == io::ImageFormat::Hdf5)
-        return core::convert_image<float>(io::read_hdf5_image(o.image, o.image_name));
-    return core::convert_image<float>(io::read_image(o.image));
-}
 
 std::string fixed(double v, int digits)
 {
@@ -83,7 +77,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         p.snake.competition = seg::CompetitionMode::Off;
     p.post.convention = o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
 
-    const core::ImageF volume = timings.time("read image", [&] { return read_volume(o); });
+    const core::ImageF volume = timings.time("read image", [&] { return core::convert_image<float>(read_any(o.image, o.image_name)); });
     std::unique_ptr<seg::ShapeMemory> memory;
     if (!o.shape.empty())
         memory = std::make_unique<seg::ShapeMemory>(timings.time("read shape memory", [&] { return read_shape_memory(o.shape); }));

@@ -2,6 +2,7 @@
 #include "common/files.h"
 #include "common/picture.h"
 #include "lseg/commands.h"
+#include "lseg/input.h"
 
 #include "lobe/io/hdf5.h"
 #include "lobe/io/image_io.h"
@@ -33,13 +34,6 @@ struct SnakeOptions {
     seg::SnakeParams params;
     std::vector<double> window{params.edge.window.level, params.edge.window.width};
 };
-
-core::AnyImage read_any(const fs::path& path, const std::string& h5_name)
-{
-    if (io::image_format(path) == io::ImageFormat::Hdf5)
-        return io::read_hdf5_image(path, h5_name);
-    return io::read_image(path);
-}
 
 //! A mask from a label image: `label` < 0 means every non-zero voxel.
 core::LabelImage3D read_mask(const fs::path& path, int label, const std::string& h5_name)
