@@ -117,31 +117,50 @@ core::LabelImage3D shrink(const core::LabelImage3D& m, double r_mm)
 }
 
 //! Keeps the 8-connected pieces of a one-slice mask that have at least min_pixels and either
-//! touch `rim` or have at least `fraction` of the largest piece's pixels: a small piece
-//! enclosed away from the rim is an organ that took the liver's place.
-void keep_liver_pieces(core::LabelImage3D& m, const core::LabelImage3D& rim, int min_pixels, double fraction)
+//! have at least `fraction` of the largest piece's pixels or lie along `rim` for at least
+//! `rim_fraction` of their border. A piece enclosed by edges and touching the rim only briefly is
+//! an organ that took the liver's place (the heart rising into the dome touches the liver's
+//! surface at one notch); a lobe cut off by a vessel or fissure lies along the surface. Returns
+//! the dropped pieces of at least min_pixels (what the snake must not enter on this slice).
+core::LabelImage3D keep_liver_pieces(core::LabelImage3D& m, const core::LabelImage3D& rim, int min_pixels, double fraction,
+                                     double rim_fraction)
 {
     cv::Mat bin(m.size[1], m.size[0], CV_8U, m.data.data());
     cv::Mat labels, stats, centroids;
     const int n = cv::connectedComponentsWithStats(bin, labels, stats, centroids, 8, CV_32S);
-    std::vector<std::uint8_t> touches(static_cast<std::size_t>(n), 0);
+    const auto at = [&](int i, int j) { return static_cast<std::size_t>(labels.at<int>(j, i)); };
+    std::vector<int> on_rim(static_cast<std::size_t>(n), 0), border(static_cast<std::size_t>(n), 0);
     for (int j = 0; j < m.size[1]; ++j)
-        for (int i = 0; i < m.size[0]; ++i)
-            if (rim.at(i, j, 0))
-                touches[static_cast<std::size_t>(labels.at<int>(j, i))] = 1;
+        for (int i = 0; i < m.size[0]; ++i) {
+            const std::size_t c = at(i, j);
+            if (c == 0)
+                continue;
+            const bool edge = i == 0 || j == 0 || i + 1 == m.size[0] || j + 1 == m.size[1] || at(i - 1, j) != c ||
+                              at(i + 1, j) != c || at(i, j - 1) != c || at(i, j + 1) != c;
+            if (edge) {
+                ++border[c];
+                on_rim[c] += rim.at(i, j, 0) ? 1 : 0;
+            }
+        }
     int largest = 0;
     for (int c = 1; c < n; ++c)
         largest = std::max(largest, stats.at<int>(c, cv::CC_STAT_AREA));
-    std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 0);
+    std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 0), drop(static_cast<std::size_t>(n), 0);
     for (int c = 1; c < n; ++c) {
+        const auto u = static_cast<std::size_t>(c);
         const int area = stats.at<int>(c, cv::CC_STAT_AREA);
-        keep[static_cast<std::size_t>(c)] = area >= min_pixels && (touches[static_cast<std::size_t>(c)] || area >= fraction * largest);
+        const bool along_rim = on_rim[u] >= rim_fraction * border[u] && on_rim[u] > 0;
+        keep[u] = area >= min_pixels && (along_rim || area >= fraction * largest);
+        drop[u] = area >= min_pixels && !keep[u];
     }
+    core::LabelImage3D dropped(m.geometry(), 0);
     for (int j = 0; j < m.size[1]; ++j)
         for (int i = 0; i < m.size[0]; ++i) {
-            auto& v = m.data[static_cast<std::size_t>(i) + static_cast<std::size_t>(m.size[0]) * static_cast<std::size_t>(j)];
-            v = v && keep[static_cast<std::size_t>(labels.at<int>(j, i))] ? 1 : 0;
+            const std::size_t idx = static_cast<std::size_t>(i) + static_cast<std::size_t>(m.size[0]) * static_cast<std::size_t>(j);
+            m.data[idx] = m.data[idx] && keep[at(i, j)] ? 1 : 0;
+            dropped.data[idx] = drop[at(i, j)];
         }
+    return dropped;
 }
 
 //! Edges of a slice that separate tissues of near-equal grey (the heart or kidney lying in a
@@ -243,8 +262,9 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     const auto t0 = Clock::now();
     SliceOutcome out;
     out.report.slice = k;
-    const core::ImageF img = slice_image(c, k);
+    core::ImageF img = slice_image(c, k);
     const core::ImageGeometry& g = img.geometry();
+    core::LabelImage3D excluded; // organs that took the liver's place on this slice
     const double px = pixel_area_mm2(g);
     core::LabelImage3D init = on_grid(start, g);
     core::LabelImage3D templ;
@@ -263,15 +283,25 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         for (std::size_t i = 0; i < init_w.data.size(); ++i)
             init_w.data[i] = init_w.data[i] && layer.data[i] && !lines.data[i];
         // The previous contour, cut along the slice's edges, falls into pieces. An organ that
-        // took the liver's place (the heart over the dome, the kidney under it) is a small piece
-        // enclosed inside it, and is left out; a lobe cut off by a vessel reaches the rim.
-        keep_liver_pieces(init_w, rim, static_cast<int>(std::ceil(p.min_seed_area_mm2 / px)), p.keep_piece_fraction);
+        // took the liver's place (the heart over the dome, the kidney under it) is a piece
+        // enclosed inside it, and is left out; a lobe cut off by a vessel lies along the rim.
+        const core::LabelImage3D dropped = keep_liver_pieces(
+            init_w, rim, static_cast<int>(std::ceil(p.min_seed_area_mm2 / px)), p.keep_piece_fraction, p.rim_piece_fraction);
         if (count(init_w) == 0) {
             out.stop = true; // no liver-like tissue left under the previous contour: the liver ended
             return out;
         }
         init = core::LabelImage3D(g, 0);
         paste(init_w, ww, init);
+        if (p.exclude_dropped_pieces && count(dropped) > 0) {
+            // The snake must not flow back into the organ through its faint contact line: to
+            // it the organ looks like fat (a strong edge), and the contour is cut there.
+            excluded = core::LabelImage3D(g, 0);
+            paste(dropped, ww, excluded);
+            for (std::size_t i = 0; i < img.data.size(); ++i)
+                if (excluded.data[i])
+                    img.data[i] = static_cast<float>(p.rib_background_hu);
+        }
     }
 
     // Only a window around the contour is modelled: the liver moves a few mm per slice, and
@@ -312,6 +342,9 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
                 out.mask.data[i] = out.mask.data[i] && envelope.data[i];
         }
     }
+    if (!excluded.data.empty())
+        for (std::size_t i = 0; i < out.mask.data.size(); ++i)
+            out.mask.data[i] = out.mask.data[i] && !excluded.data[i];
     out.report.area_mm2 = area_of(out.mask);
     out.report.seconds = seconds_since(t0);
     if (out.report.area_mm2 < p.min_area_mm2)

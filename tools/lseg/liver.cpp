@@ -172,6 +172,14 @@ Command add_liver(CLI::App& lseg)
                     "Without a shape memory: how far the contour may move out between slices, per mm of slice gap")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    cmd->add_option("--smoothing", o->params.post.smoothing_mm,
+                    "3-D pass: Gaussian sigma of the volume-preserving smoothing [mm]; 0 = none")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--ivc-closing", o->params.post.concavity_closing_mm,
+                    "3-D pass, sliver07: radius of the per-slice closing that adds the IVC's concavity [mm]; 0 = none")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
     return {cmd, [o](const tools::Progress& progress, tools::RunRecord& record) { return run_liver(*o, progress, record); }};
 }
 
