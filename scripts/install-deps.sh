@@ -10,6 +10,7 @@ packages=(
   zlib1g-dev libhdf5-dev libgdcm-dev libgdcm-tools libnifti2-dev libassimp-dev hdf5-tools
   libeigen3-dev libcgal-dev libgmp-dev libmpfr-dev libopencv-dev libsuitesparse-dev
   libcli11-dev nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libtbb-dev  # CGAL's parallel Mesh_3 (libmesh)
   # real files the tests read: ITK's example MetaImages and pydicom's DICOM test files
   insighttoolkit5-examples python3-pydicom
 )
