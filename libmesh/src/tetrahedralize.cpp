@@ -35,14 +35,6 @@ namespace {
 
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Domain = CGAL::Labeled_mesh_domain_3<K>;
-#ifdef CGAL_LINKED_WITH_TBB
-using Concurrency = CGAL::Parallel_tag;
-#else
-using Concurrency = CGAL::Sequential_tag;
-#endif
-using Tr = CGAL::Mesh_triangulation_3<Domain, CGAL::Default, Concurrency>::type;
-using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
-using Criteria = CGAL::Mesh_criteria_3<Tr>;
 using Point = K::Point_3;
 
 using core::Vec3;
@@ -327,6 +319,7 @@ double det3(const core::ImageGeometry& g)
 // Initial points: for every component, boundary points found by intersecting the domain along
 // segments from some of its voxels to a neighbour of another label (always a boundary crossing),
 // spread over the component. This is what makes CGAL mesh every piece.
+template <class C3t3>
 void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr, const core::ImageGeometry& g,
                            int per_component)
 {
@@ -374,11 +367,66 @@ void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr,
             if (std::get<2>(x) == 0)
                 continue;
             auto v = c3t3.triangulation().insert(cwp(std::get<0>(x)));
-            if (v != Tr::Vertex_handle()) {
+            if (v != typename C3t3::Triangulation::Vertex_handle()) {
                 c3t3.set_dimension(v, 2);
                 c3t3.set_index(v, std::get<1>(x));
             }
         }
+}
+
+// CGAL's refinement and optimisation, then the complex's cells as a TetMesh in physical space.
+// Serial (Sequential_tag) runs repeat exactly; Parallel_tag runs use TBB and vary run to run.
+template <class Tag>
+void run_mesh_3(const Domain& domain, const SizingField& field, double facet_distance, const Prepared& pr,
+                const core::ImageGeometry& g, const MeshParams& p, const std::function<void(const std::string&)>& say,
+                core::TetMesh& out)
+{
+    using Tr = typename CGAL::Mesh_triangulation_3<Domain, CGAL::Default, Tag>::type;
+    using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
+    using Criteria = CGAL::Mesh_criteria_3<Tr>;
+    namespace cp = CGAL::parameters;
+    Criteria criteria(cp::facet_angle = p.facet_angle, cp::facet_size = field, cp::facet_distance = facet_distance,
+                      cp::cell_radius_edge_ratio = p.radius_edge_ratio, cp::cell_size = field);
+
+    C3t3 c3t3;
+    insert_initial_points(c3t3, domain, pr, g, 12);
+    if (c3t3.triangulation().dimension() != 3)
+        CGAL::Mesh_3::internal::init_c3t3(c3t3, domain, criteria, 20);
+
+    say("refining");
+    const double tl = p.optimisation_time_limit;
+    try {
+        CGAL::refine_mesh_3(c3t3, domain, criteria,
+                            p.lloyd ? CGAL::parameters::lloyd(cp::time_limit = tl) : CGAL::parameters::no_lloyd(),
+                            p.odt ? CGAL::parameters::odt(cp::time_limit = tl) : CGAL::parameters::no_odt(),
+                            p.perturb ? CGAL::parameters::perturb(cp::time_limit = tl, cp::sliver_bound = p.sliver_bound)
+                                      : CGAL::parameters::no_perturb(),
+                            p.exude ? CGAL::parameters::exude(cp::time_limit = tl, cp::sliver_bound = p.sliver_bound)
+                                    : CGAL::parameters::no_exude());
+    } catch (const std::exception& e) {
+        throw core::SolverError(std::string("mesh_labels: CGAL Mesh_3 failed: ") + e.what());
+    }
+
+    say("extracting the mesh");
+    const bool flip = det3(g) < 0;
+    std::unordered_map<typename Tr::Vertex_handle, std::int32_t> index;
+    for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c) {
+        std::array<std::int32_t, 4> t{};
+        for (int i = 0; i < 4; ++i) {
+            const auto v = c->vertex(i);
+            auto it = index.find(v);
+            if (it == index.end()) {
+                const auto& q = c3t3.triangulation().point(v).point();
+                it = index.emplace(v, static_cast<std::int32_t>(out.vertices.size())).first;
+                out.vertices.push_back(to_physical(g, Vec3{q.x(), q.y(), q.z()}));
+            }
+            t[static_cast<std::size_t>(i)] = it->second;
+        }
+        if (flip)
+            std::swap(t[0], t[1]);
+        out.tets.push_back(t);
+        out.tet_labels.push_back(static_cast<std::int32_t>(c3t3.subdomain_index(c)));
+    }
 }
 
 } // namespace
@@ -499,58 +547,21 @@ MeshResult mesh_labels(const core::LabelImage3D& labels, const MeshParams& p)
     // deviates s^2 / (8R); bounding the deviation by cf^2 R_min / 8 keeps s <= cf R for R >= R_min.
     const double r_min = p.min_feature_radius > 0 ? p.min_feature_radius : 2 * std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
     const double facet_distance = std::max(p.curvature_factor * p.curvature_factor * r_min / 8, 0.05 * min_spacing);
-    Criteria criteria(cp::facet_angle = p.facet_angle, cp::facet_size = field, cp::facet_distance = facet_distance,
-                      cp::cell_radius_edge_ratio = p.radius_edge_ratio, cp::cell_size = field);
-
 #ifdef CGAL_LINKED_WITH_TBB
-    const int threads = p.threads > 0 ? p.threads : tbb::info::default_concurrency();
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+    const int threads = p.threads > 0 ? p.threads : static_cast<int>(tbb::info::default_concurrency());
     result.threads = threads;
+    say("meshing on " + std::to_string(threads) + " thread(s), " + std::to_string(pr.comps.size()) + " components");
+    if (threads > 1) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+        run_mesh_3<CGAL::Parallel_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
+    } else {
+        run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
+    }
 #else
     result.threads = 1;
+    run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
 #endif
-
-    say("initial points on " + std::to_string(pr.comps.size()) + " components");
-    C3t3 c3t3;
-    insert_initial_points(c3t3, domain, pr, g, 12);
-    if (c3t3.triangulation().dimension() != 3)
-        CGAL::Mesh_3::internal::init_c3t3(c3t3, domain, criteria, 20);
-
-    say("refining");
-    const double tl = p.optimisation_time_limit;
-    try {
-        CGAL::refine_mesh_3(c3t3, domain, criteria,
-                            p.lloyd ? CGAL::parameters::lloyd(cp::time_limit = tl) : CGAL::parameters::no_lloyd(),
-                            p.odt ? CGAL::parameters::odt(cp::time_limit = tl) : CGAL::parameters::no_odt(),
-                            p.perturb ? CGAL::parameters::perturb(cp::time_limit = tl, cp::sliver_bound = p.sliver_bound)
-                                      : CGAL::parameters::no_perturb(),
-                            p.exude ? CGAL::parameters::exude(cp::time_limit = tl, cp::sliver_bound = p.sliver_bound)
-                                    : CGAL::parameters::no_exude());
-    } catch (const std::exception& e) {
-        throw core::SolverError(std::string("mesh_labels: CGAL Mesh_3 failed: ") + e.what());
-    }
-
-    say("extracting the mesh");
-    const bool flip = det3(g) < 0;
-    std::unordered_map<Tr::Vertex_handle, std::int32_t> index;
     auto& out = result.mesh;
-    for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c) {
-        std::array<std::int32_t, 4> t{};
-        for (int i = 0; i < 4; ++i) {
-            const auto v = c->vertex(i);
-            auto it = index.find(v);
-            if (it == index.end()) {
-                const auto& q = c3t3.triangulation().point(v).point();
-                it = index.emplace(v, static_cast<std::int32_t>(out.vertices.size())).first;
-                out.vertices.push_back(to_physical(g, Vec3{q.x(), q.y(), q.z()}));
-            }
-            t[static_cast<std::size_t>(i)] = it->second;
-        }
-        if (flip)
-            std::swap(t[0], t[1]);
-        out.tets.push_back(t);
-        out.tet_labels.push_back(static_cast<std::int32_t>(c3t3.subdomain_index(c)));
-    }
     // CGAL cells are positively oriented; drop any tet that rounding flattened (none expected).
     {
         core::TetMesh kept;

@@ -57,8 +57,9 @@ struct MeshParams {
     int min_component_voxels = 8;         //!< smaller connected components (6-connected) are
                                           //!< specks: relabelled to their neighbours' majority
     std::int64_t max_tets = 5'000'000;    //!< refuse requests estimated above this
-    int threads = 0;                      //!< 0 = all cores (CGAL parallel mode, TBB); 1 = serial
-    std::uint32_t seed = 0;               //!< CGAL's random generator (serial runs repeat exactly)
+    int threads = 0;                      //!< 0 = all cores (CGAL parallel mode, TBB; runs vary);
+                                          //!< 1 = serial (runs repeat exactly)
+    std::uint32_t seed = 0;               //!< seed of CGAL's random generator
     std::function<void(const std::string&)> progress; //!< optional stage messages
 };
 
