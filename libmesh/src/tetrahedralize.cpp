@@ -545,7 +545,7 @@ MeshResult mesh_labels(const core::LabelImage3D& labels, const MeshParams& p)
     }
     // Boundary size from the curvature factor: a chord of length s on a circle of radius R
     // deviates s^2 / (8R); bounding the deviation by cf^2 R_min / 8 keeps s <= cf R for R >= R_min.
-    const double r_min = p.min_feature_radius > 0 ? p.min_feature_radius : 2 * std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double r_min = p.min_feature_radius > 0 ? p.min_feature_radius : std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
     const double facet_distance = std::max(p.curvature_factor * p.curvature_factor * r_min / 8, 0.05 * min_spacing);
 #ifdef CGAL_LINKED_WITH_TBB
     const int threads = p.threads > 0 ? p.threads : static_cast<int>(tbb::info::default_concurrency());

@@ -43,7 +43,7 @@ struct MeshParams {
     std::vector<TissueSize> tissue_sizes; //!< overrides of `size` per label
     double curvature_factor = 1.0;        //!< thesis: boundary element size <= factor x radius of
                                           //!< curvature, for radii >= min_feature_radius
-    double min_feature_radius = 0;        //!< [mm] smallest curvature radius resolved; 0 = 2 voxels
+    double min_feature_radius = 0;        //!< [mm] smallest curvature radius resolved; 0 = 1 voxel
     double facet_angle = 25;              //!< lower bound on surface facet angles [deg] (CGAL: <= 30)
     double radius_edge_ratio = 1.9;       //!< bound B on circumradius / shortest edge (< 2, thesis)
     double grading = 1.5;                 //!< max size ratio between neighbours for the ROI sizing
