@@ -273,6 +273,7 @@ struct SizingField {
     std::array<double, 256> by_label{};
     double fallback = 1;
     std::shared_ptr<const RoiFrame> roi;
+    bool ignore_index = false; // facets: one size for every surface patch (see run_mesh_3)
 
     double label_size(int l) const
     {
@@ -283,7 +284,9 @@ struct SizingField {
     FT operator()(const Point& p, const int dim, const Index& index) const
     {
         double s = fallback;
-        if (dim == 3) {
+        if (ignore_index) {
+            // the position-only field of the surface facets
+        } else if (dim == 3) {
             if (const int* sub = boost::get<int>(&index))
                 s = label_size(*sub);
         } else if (dim == 2) {
@@ -385,7 +388,14 @@ void run_mesh_3(const Domain& domain, const SizingField& field, double facet_dis
     using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
     using Criteria = CGAL::Mesh_criteria_3<Tr>;
     namespace cp = CGAL::parameters;
-    Criteria criteria(cp::facet_angle = p.facet_angle, cp::facet_size = field, cp::facet_distance = facet_distance,
+    // Surface facets: one size for every patch (the smallest tissue size, refined towards the
+    // ROI), because a facet size looked up per surface patch made CGAL 5.5's facet refinement
+    // run without end on the phantom (docs/algorithms/meshing.md); tets get per-tissue sizes.
+    SizingField facet_field = field;
+    facet_field.ignore_index = true;
+    for (const auto& c : pr.comps)
+        facet_field.fallback = std::min(facet_field.fallback, field.label_size(c.label));
+    Criteria criteria(cp::facet_angle = p.facet_angle, cp::facet_size = facet_field, cp::facet_distance = facet_distance,
                       cp::cell_radius_edge_ratio = p.radius_edge_ratio, cp::cell_size = field);
 
     C3t3 c3t3;
