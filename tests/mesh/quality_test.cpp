@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
+
 #include <cmath>
 
 using namespace lobe;
@@ -250,4 +252,109 @@ TEST(MeshQuality, RefusesMalformedMeshes)
     m.tets = {{0, 2, 1, 3}}; // negatively oriented
     m.tet_labels = {1};
     EXPECT_THROW(mesh::evaluate_quality(m), core::InvalidInputError);
+}
+
+namespace {
+
+// n^3 cubes of side 1, each split into the 6 Kuhn tets (all positively oriented).
+core::TetMesh kuhn_cube(int n)
+{
+    core::TetMesh m;
+    auto id = [n](int i, int j, int k) { return i + (n + 1) * (j + (n + 1) * k); };
+    for (int k = 0; k <= n; ++k)
+        for (int j = 0; j <= n; ++j)
+            for (int i = 0; i <= n; ++i)
+                m.vertices.push_back({double(i), double(j), double(k)});
+    const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    for (int k = 0; k < n; ++k)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i)
+                for (const auto& p : perms) {
+                    int c[3] = {i, j, k};
+                    std::array<std::int32_t, 4> t{};
+                    t[0] = id(c[0], c[1], c[2]);
+                    for (int s = 0; s < 3; ++s) {
+                        ++c[p[s]];
+                        t[static_cast<std::size_t>(s + 1)] = id(c[0], c[1], c[2]);
+                    }
+                    if (core::signed_volume(m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]], m.vertices[t[3]]) < 0)
+                        std::swap(t[0], t[1]);
+                    m.tets.push_back(t);
+                    m.tet_labels.push_back(1);
+                }
+    return m;
+}
+
+// Condition number of the P1 Laplacian stiffness matrix with the boundary vertices fixed
+// (Dirichlet), so that it is positive definite: lambda_max / lambda_min.
+double stiffness_condition(const core::TetMesh& m, int n)
+{
+    std::vector<int> free(m.vertices.size(), -1);
+    int nf = 0;
+    for (std::size_t v = 0; v < m.vertices.size(); ++v) {
+        const int iv = static_cast<int>(v), i = iv % (n + 1), j = (iv / (n + 1)) % (n + 1), k = iv / ((n + 1) * (n + 1));
+        if (i > 0 && j > 0 && k > 0 && i < n && j < n && k < n)
+            free[v] = nf++;
+    }
+    Eigen::MatrixXd K = Eigen::MatrixXd::Zero(nf, nf);
+    for (const auto& t : m.tets) {
+        Eigen::Matrix3d J;
+        for (int c = 0; c < 3; ++c)
+            for (int r = 0; r < 3; ++r)
+                J(r, c) = m.vertices[t[c + 1]][r] - m.vertices[t[0]][r];
+        const Eigen::Matrix3d inv = J.inverse();
+        Eigen::Matrix<double, 4, 3> g;
+        g.row(1) = inv.row(0);
+        g.row(2) = inv.row(1);
+        g.row(3) = inv.row(2);
+        g.row(0) = -(inv.row(0) + inv.row(1) + inv.row(2));
+        const Eigen::Matrix4d ke = std::abs(J.determinant()) / 6 * g * g.transpose();
+        for (int a = 0; a < 4; ++a)
+            for (int b = 0; b < 4; ++b)
+                if (free[t[a]] >= 0 && free[t[b]] >= 0)
+                    K(free[t[a]], free[t[b]]) += ke(a, b);
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(K, Eigen::EigenvaluesOnly);
+    return es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
+}
+
+} // namespace
+
+TEST(MeshQuality, ConditioningMeasurePredictsTheStiffnessConditionNumber)
+{
+    // Shewchuk: lambda_min of the assembled matrix hardly depends on element shape while
+    // lambda_max lies between the largest element lambda_max and the largest sum of them over
+    // a vertex's elements. The element lambda_max is V^(1/3) / (conditioning x c_reg), so a mesh
+    // whose worst conditioning measure drops k-fold should see lambda_max, hence the condition
+    // number, grow about k-fold once that element dominates. Degrade a 4^3 Kuhn mesh by pushing
+    // one interior vertex along a diagonal edge, and compare the growth from t = 0.9 on.
+    const int n = 4;
+    const auto good = kuhn_cube(n);
+    const double c_reg = std::cbrt(1 / (6 * std::sqrt(2.0))) * 3 * std::sqrt(2.0); // V^(1/3)/lambda of the regular tet
+    auto predicted_lambda = [&](const core::TetMesh& m) {
+        const auto q = mesh::evaluate_quality(m);
+        double worst = 0;
+        for (std::size_t t = 0; t < m.tets.size(); ++t)
+            worst = std::max(worst, std::cbrt(core::signed_volume(m, t)) /
+                                        (q.per_tet[int(Measure::Conditioning)][t] * c_reg));
+        return worst;
+    };
+    const std::int32_t v = 1 + (n + 1) * (1 + (n + 1) * 1); // vertex (1,1,1)
+    double kappa_ref = 0, lam_ref = 0, kappa_prev = stiffness_condition(good, n);
+    for (double t : {0.9, 0.95, 0.97, 0.99, 0.995}) {
+        auto bad = good;
+        bad.vertices[v] = Vec3{1, 1, 1} * (1 + t); // towards (2,2,2), along a mesh edge
+        ASSERT_EQ(core::mesh_problem(bad), "") << t;
+        const double kappa = stiffness_condition(bad, n), lam = predicted_lambda(bad);
+        if (kappa_ref == 0)
+            kappa_ref = kappa, lam_ref = lam;
+        std::printf("t %.3f: predicted lambda_max x%.2f, condition number x%.2f (from t = 0.9)\n", t, lam / lam_ref,
+                    kappa / kappa_ref);
+        EXPECT_GT(kappa, kappa_prev); // worse element, worse conditioning
+        kappa_prev = kappa;
+        // Growth predicted within a factor 1.5: the neighbours' share of lambda_max and
+        // lambda_min's small change are what separate them (measured 0.81 at t = 0.99).
+        EXPECT_GT(kappa / kappa_ref, lam / lam_ref / 1.5);
+        EXPECT_LT(kappa / kappa_ref, lam / lam_ref * 1.5);
+    }
 }
