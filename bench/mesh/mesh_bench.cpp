@@ -2,6 +2,7 @@
 // lphantom volume, over a few parameter sets; one line per run. Results: docs/benchmarks.md.
 //   mesh_bench [LIVER.inr.gz]   (default ../shared/data/liver-labels-inr/liver.inr.gz)
 #include "inrimage.h"
+#include "tetgen_peer.h"
 
 #include "lobe/mesh/quality.h"
 #include "lobe/mesh/tetrahedralize.h"
@@ -13,6 +14,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -46,7 +48,7 @@ core::LabelImage3D remap(core::LabelImage3D img, std::string& mapping)
     return img;
 }
 
-void run(const char* scene, const core::LabelImage3D& labels, const mesh::MeshParams& p, const char* what)
+mesh::MeshResult run(const char* scene, const core::LabelImage3D& labels, const mesh::MeshParams& p, const char* what)
 {
     const auto t0 = std::chrono::steady_clock::now();
     const auto r = mesh::mesh_labels(labels, p);
@@ -65,6 +67,35 @@ void run(const char* scene, const core::LabelImage3D& labels, const mesh::MeshPa
         big_missed += c.voxels >= 100 && !c.meshed;
     std::printf("  pieces>=100 unmeshed %d\n", big_missed);
     std::fflush(stdout);
+    return r;
+}
+
+// tetgen on lobe's boundary and interface faces of `r`: the same surfaces, volumes against the
+// same label volumes.
+void run_tetgen_peer(const char* scene, const mesh::MeshResult& r, const std::string& switches)
+{
+    const auto dir = std::filesystem::temp_directory_path() / ("lobe_mesh_bench_" + std::string(scene));
+    const auto t = bench::run_tetgen(r.mesh, switches, dir);
+    if (!t.ok) {
+        std::printf("%-8s tetgen -%-36s failed: %s\n", scene, switches.c_str(), t.message.c_str());
+        return;
+    }
+    const auto q = mesh::evaluate_quality(t.mesh);
+    const auto& comb = q.all.measures[static_cast<int>(mesh::Measure::Combined)];
+    std::printf("%-8s tetgen -%-36s threads 1: %7zu tets %6.2f s  dihedral %5.2f-%6.2f deg  combined min %.3f mean %.3f "
+                "<0.3 %5.1f%%  volumes",
+                scene, switches.c_str(), t.mesh.tets.size(), t.seconds, q.all.min_dihedral_deg, q.all.max_dihedral_deg,
+                comb.min, comb.mean, 100.0 * double(comb.bands[0]) / double(comb.count));
+    for (const auto& tr : r.tissues) {
+        double v = 0;
+        for (std::size_t i = 0; i < t.mesh.tets.size(); ++i)
+            if (t.mesh.tet_labels[i] == tr.label)
+                v += core::signed_volume(t.mesh, i);
+        std::printf(" %d:%.3f", tr.label, tr.label_volume > 0 ? v / tr.label_volume : 0.0);
+    }
+    std::printf("\n");
+    std::fflush(stdout);
+    std::filesystem::remove_all(dir);
 }
 
 } // namespace
@@ -104,7 +135,12 @@ int main(int argc, char** argv)
             p.tissue_sizes = c.sizes;
             p.threads = c.threads;
             try {
-                run(scene.c_str(), labels, p, c.what);
+                const auto r = run(scene.c_str(), labels, p, c.what);
+                // The peer on the surfaces of the 50 k-class configuration (serial).
+                if (c.threads == 1 && std::system("command -v tetgen > /dev/null 2>&1") == 0) {
+                    run_tetgen_peer(scene.c_str(), r, "pq1.9AYQ");
+                    run_tetgen_peer(scene.c_str(), r, "pq1.414AYQ");
+                }
             } catch (const std::exception& e) {
                 std::printf("%-8s %-44s failed: %s\n", scene.c_str(), c.what, e.what());
             }
