@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages lobe needs to build, test and run its demo.
 # Idempotent: when every package is already installed it does nothing (no apt-get update).
-# With --bench it also installs what the benchmarks need: ITK (the outside peer the segmentation
+# With --bench it also installs what the benchmarks need: tetgen (the meshing peer), ITK (the outside peer the segmentation
 # benchmarks compare against; never a library dependency) and matplotlib for the charts.
 set -euo pipefail
 
