@@ -14,3 +14,8 @@ if(LOBE_BUILD_TOOLS)
   find_package(CLI11 REQUIRED)
   find_package(nlohmann_json 3 REQUIRED)
 endif()
+# libmesh: CGAL 5.5 (header-only; ImageIO for the labelled-image domain) and TBB for CGAL's
+# parallel Mesh_3 (CGAL::TBB_support defines CGAL_LINKED_WITH_TBB).
+find_package(CGAL 5.5 REQUIRED COMPONENTS ImageIO)
+find_package(TBB REQUIRED)
+include(CGAL_TBB_support)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages lobe needs to build, test and run its demo.
 # Idempotent: when every package is already installed it does nothing (no apt-get update).
-# With --bench it also installs what the benchmarks need: ITK (the outside peer the segmentation
+# With --bench it also installs what the benchmarks need: tetgen (the meshing peer), ITK (the outside peer the segmentation
 # benchmarks compare against; never a library dependency) and matplotlib for the charts.
 set -euo pipefail
 
@@ -10,12 +10,13 @@ packages=(
   zlib1g-dev libhdf5-dev libgdcm-dev libgdcm-tools libnifti2-dev libassimp-dev hdf5-tools
   libeigen3-dev libcgal-dev libgmp-dev libmpfr-dev libopencv-dev libsuitesparse-dev
   libcli11-dev nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libtbb-dev  # CGAL's parallel Mesh_3 (libmesh)
   # real files the tests read: ITK's example MetaImages and pydicom's DICOM test files
   insighttoolkit5-examples python3-pydicom
 )
 
 if [ "${1:-}" = "--bench" ]; then
-  packages+=(libinsighttoolkit5-dev python3-matplotlib python3-numpy)
+  packages+=(libinsighttoolkit5-dev python3-matplotlib python3-numpy tetgen)
 fi
 
 missing=()

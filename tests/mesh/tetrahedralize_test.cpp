@@ -1,0 +1,303 @@
+#include "lobe/mesh/tetrahedralize.h"
+
+#include "lobe/core/errors.h"
+#include "lobe/mesh/quality.h"
+#include "mesh/label_shapes.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+
+using namespace lobe;
+using core::Vec3;
+
+namespace {
+
+const double kPi = std::acos(-1.0);
+
+using Face = std::array<std::int32_t, 3>;
+
+Face sorted_face(std::int32_t a, std::int32_t b, std::int32_t c)
+{
+    Face f{a, b, c};
+    std::sort(f.begin(), f.end());
+    return f;
+}
+
+// Every face with the labels of the tets on its sides (one entry per side).
+std::map<Face, std::vector<int>> face_sides(const core::TetMesh& m)
+{
+    std::map<Face, std::vector<int>> faces;
+    for (std::size_t t = 0; t < m.tets.size(); ++t) {
+        const auto& q = m.tets[t];
+        const int f[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+        for (const auto& i : f)
+            faces[sorted_face(q[i[0]], q[i[1]], q[i[2]])].push_back(m.tet_labels[t]);
+    }
+    return faces;
+}
+
+double min_dihedral_deg(const core::TetMesh& m)
+{
+    double worst = 180;
+    for (const auto& q : m.tets) {
+        const auto a = mesh::dihedral_angles(m.vertices[q[0]], m.vertices[q[1]], m.vertices[q[2]], m.vertices[q[3]]);
+        worst = std::min(worst, *std::min_element(a.begin(), a.end()) * 180 / kPi);
+    }
+    return worst;
+}
+
+double label_mesh_volume(const core::TetMesh& m, int label)
+{
+    double v = 0;
+    for (std::size_t t = 0; t < m.tets.size(); ++t)
+        if (m.tet_labels[t] == label)
+            v += core::signed_volume(m, t);
+    return v;
+}
+
+} // namespace
+
+TEST(MeshLabels, SphereVolumeBoundaryAndQuality)
+{
+    // Sphere of radius 12 mm on a 32^3 grid of 0.9 mm voxels, placed off the origin, so that
+    // spacing and origin are exercised (voxel centres inside the ball).
+    const double spacing = 0.9, r = 12;
+    auto img = test::empty_labels(32, spacing, {100, -50, 20});
+    const Vec3 c{100 + 15.5 * spacing, -50 + 15.5 * spacing, 20 + 15.5 * spacing};
+    test::paint_sphere(img, c, r, 1);
+    mesh::MeshParams p;
+    p.size = 2.5;
+    p.threads = 1;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto res = mesh::mesh_labels(img, p);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const auto& m = res.mesh;
+    ASSERT_EQ(core::mesh_problem(m), "");
+    const double exact = 4.0 / 3 * kPi * r * r * r;
+    const double vol = label_mesh_volume(m, 1);
+    std::printf("sphere: %zu tets %zu vertices, volume %.1f (exact %.1f, voxels %.1f), min dihedral %.2f, %.2f s\n",
+                m.tets.size(), m.vertices.size(), vol, exact, res.tissues[0].label_volume, min_dihedral_deg(m), secs);
+    // Boundary: every vertex on a boundary face lies within a voxel of the sphere.
+    double hd = 0;
+    for (const auto& [f, sides] : face_sides(m))
+        if (sides.size() == 1)
+            for (auto v : f)
+                hd = std::max(hd, std::abs(core::distance(m.vertices[v], c) - r));
+    std::printf("boundary max |d - r| = %.3f mm\n", hd);
+    EXPECT_LT(hd, spacing);
+    EXPECT_NEAR(vol, exact, 0.04 * exact);
+    EXPECT_GT(min_dihedral_deg(m), 5.0);
+}
+
+TEST(MeshLabels, CubeJoinedToSphereConformsAtTheInterface)
+{
+    // The thesis's two-tissue scene: a cube (label 1, x in [6, 26]) and a ball of radius 8 centred
+    // on its +x face (label 2 where outside the cube). Their interface is the disc x = 26,
+    // radius 8 (area 64 pi), within the voxelisation (the disc's rim is stair-stepped).
+    auto img = test::empty_labels(40);
+    test::paint_sphere(img, {26, 19.5, 19.5}, 8, 2);
+    test::paint_box(img, {6, 9.5, 9.5}, {26, 29.5, 29.5}, 1);
+    mesh::MeshParams p;
+    p.size = 2.5;
+    p.threads = 1;
+    const auto res = mesh::mesh_labels(img, p);
+    const auto& m = res.mesh;
+    ASSERT_EQ(core::mesh_problem(m), "");
+    // Conforming: every face is shared by at most two tets; a face seen from one label only
+    // once must be on the outer boundary (no hanging face inside), and interface faces have a
+    // tet of each label.
+    double interface_area = 0;
+    int boundary_faces = 0;
+    for (const auto& [f, sides] : face_sides(m)) {
+        ASSERT_LE(sides.size(), 2u);
+        if (sides.size() == 1)
+            ++boundary_faces;
+        if (sides.size() == 2 && sides[0] != sides[1]) {
+            const Vec3& a = m.vertices[f[0]];
+            interface_area += core::norm(core::cross(m.vertices[f[1]] - a, m.vertices[f[2]] - a)) / 2;
+            // An interface face lies on the plane x = 26 (the cube's face), to within a voxel.
+            for (auto v : f)
+                EXPECT_NEAR(m.vertices[v].x, 26.5, 1.0);
+        }
+    }
+    std::printf("interface area %.1f mm^2 (disc %.1f), %d boundary faces\n", interface_area, 64 * kPi, boundary_faces);
+    EXPECT_NEAR(interface_area, 64 * kPi, 0.15 * 64 * kPi);
+    // No duplicated vertices across tissues: no two vertices closer than 1e-6 mm.
+    auto v = m.vertices;
+    std::sort(v.begin(), v.end(), [](const Vec3& a, const Vec3& b) { return a.x < b.x; });
+    int duplicates = 0;
+    for (std::size_t i = 0; i < v.size(); ++i)
+        for (std::size_t j = i + 1; j < v.size() && v[j].x - v[i].x < 1e-6; ++j)
+            duplicates += core::distance(v[i], v[j]) < 1e-6;
+    EXPECT_EQ(duplicates, 0);
+    // Volumes: each tissue within 5% of its label volume (the surface follows the voxel
+    // boundary to a fraction of a voxel; the ball part has ~1000 voxels of ~3000 mm^3 surface).
+    ASSERT_EQ(res.tissues.size(), 2u);
+    for (const auto& t : res.tissues) {
+        std::printf("tissue %d: mesh %.1f label %.1f mm^3, %lld tets\n", t.label, t.mesh_volume, t.label_volume,
+                    static_cast<long long>(t.tets));
+        EXPECT_NEAR(t.mesh_volume, t.label_volume, 0.05 * t.label_volume);
+        EXPECT_EQ(t.components, 1);
+        EXPECT_EQ(t.components_meshed, 1);
+    }
+    EXPECT_GT(min_dihedral_deg(m), 5.0);
+}
+
+TEST(MeshLabels, EverySeparatePieceIsMeshed)
+{
+    // One label in three pieces: a ball of radius 9, one of radius 5 and a small one of radius
+    // 3 (113 voxels, just above the 100-voxel bar), far apart.
+    auto img = test::empty_labels(48);
+    test::paint_sphere(img, {12, 12, 12}, 9, 1);
+    test::paint_sphere(img, {36, 36, 36}, 5, 1);
+    test::paint_sphere(img, {36, 10, 38}, 3, 1);
+    mesh::MeshParams p;
+    p.size = 2.5;
+    p.threads = 1;
+    const auto res = mesh::mesh_labels(img, p);
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    ASSERT_EQ(res.components.size(), 3u);
+    for (const auto& c : res.components) {
+        std::printf("piece: %lld voxels, label %.1f mesh %.1f mm^3, %lld tets\n", static_cast<long long>(c.voxels),
+                    c.label_volume, c.mesh_volume, static_cast<long long>(c.tets));
+        EXPECT_TRUE(c.meshed);
+        // Small pieces have relatively more surface, where facets cut corners: 15% for the
+        // radius-3 piece, which is 2.5 voxels across its stair-steps.
+        EXPECT_NEAR(c.mesh_volume, c.label_volume, 0.15 * c.label_volume);
+    }
+    EXPECT_EQ(res.tissues[0].components_meshed, 3);
+}
+
+TEST(MeshLabels, ParallelModeGivesAValidMesh)
+{
+    // Two threads (CGAL's TBB mode): the mesh differs run to run but must be as valid and as
+    // accurate as the serial one (same 4% volume bound as the serial sphere test).
+    auto img = test::empty_labels(32);
+    test::paint_sphere(img, {15.5, 15.5, 15.5}, 12, 1);
+    mesh::MeshParams p;
+    p.size = 2.0;
+    p.threads = 2;
+    const auto res = mesh::mesh_labels(img, p);
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    const double exact = 4.0 / 3 * kPi * 12 * 12 * 12;
+    EXPECT_NEAR(label_mesh_volume(res.mesh, 1), exact, 0.04 * exact);
+    EXPECT_EQ(res.components.size(), 1u);
+    EXPECT_TRUE(res.components[0].meshed);
+}
+
+TEST(MeshLabels, DirectionMatrixPlacesTheMeshInPhysicalSpace)
+{
+    // A box of label 1 at index [4, 11] x [4, 19] x [4, 7] in a grid whose axes are permuted and
+    // flipped (x' = -z, y' = x, z' = y: determinant +1 after a flip of one axis gives -1, which
+    // reverses orientation); the mesh's bounding box must be the box's physical extent, to
+    // within half a voxel each side (the surface lies between voxel centres).
+    core::ImageGeometry g;
+    g.size = {16, 24, 12};
+    g.spacing = {1.0, 0.5, 2.0};
+    g.origin = {5, 6, 7};
+    g.direction = {0, 0, -1, 1, 0, 0, 0, 1, 0}; // columns: axis i -> +y, axis j -> +z, axis k -> -x
+    core::LabelImage3D img(g, 0);
+    for (int k = 4; k <= 7; ++k)
+        for (int j = 4; j <= 19; ++j)
+            for (int i = 4; i <= 11; ++i)
+                img.at(i, j, k) = 1;
+    mesh::MeshParams p;
+    p.size = 2.0;
+    p.threads = 1;
+    const auto res = mesh::mesh_labels(img, p);
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    Vec3 lo{1e9, 1e9, 1e9}, hi{-1e9, -1e9, -1e9};
+    for (const auto& v : res.mesh.vertices)
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], v[a]);
+            hi[a] = std::max(hi[a], v[a]);
+        }
+    // Index box corners (3.5..11.5, 3.5..19.5, 3.5..7.5) in physical space.
+    const Vec3 a = img.index_to_physical(Vec3{3.5, 3.5, 3.5}), b = img.index_to_physical(Vec3{11.5, 19.5, 7.5});
+    for (int ax = 0; ax < 3; ++ax) {
+        EXPECT_NEAR(lo[ax], std::min(a[ax], b[ax]), 0.5 * 2.0) << "axis " << ax; // half the largest voxel
+        EXPECT_NEAR(hi[ax], std::max(a[ax], b[ax]), 0.5 * 2.0) << "axis " << ax;
+    }
+    const double box = 8 * 1.0 * 16 * 0.5 * 4 * 2.0;
+    // CGAL does not protect sharp edges on an image domain: the cube's 12 edges are chamfered by
+    // about a voxel (12 x 8 mm x (1 mm)^2 / 2 = 48 mm^3, 9% of this 8 mm cube; measured 8%).
+    EXPECT_NEAR(res.tissues[0].mesh_volume, box, 0.12 * box);
+}
+
+TEST(MeshLabels, BorderSpeckEmptyAndOversizedInputs)
+{
+    // Empty label volume: refused.
+    auto img = test::empty_labels(16);
+    EXPECT_THROW(mesh::mesh_labels(img), core::InvalidInputError);
+    // A single voxel of label 1: dropped, then nothing is left: refused.
+    img.at(8, 8, 8) = 1;
+    EXPECT_THROW(mesh::mesh_labels(img), core::InvalidInputError);
+    // A ball touching the border (cut by the x = 0 face) plus a speck of label 4 inside it:
+    // padded, closed, the speck relabelled 1 and reported.
+    auto b = test::empty_labels(24);
+    test::paint_sphere(b, {3, 12, 12}, 8, 1);
+    b.at(5, 12, 12) = 4;
+    mesh::MeshParams p;
+    p.size = 2.0;
+    p.threads = 1;
+    const auto res = mesh::mesh_labels(b, p);
+    EXPECT_TRUE(res.padded);
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    bool speck_reported = false;
+    for (const auto& w : res.warnings)
+        speck_reported = speck_reported || w.find("speck of label 4") != std::string::npos;
+    EXPECT_TRUE(speck_reported);
+    for (auto l : res.mesh.tet_labels)
+        EXPECT_EQ(l, 1);
+    // Closed: the cut face at x = -0.5 is meshed, so the volume matches the voxels (5%).
+    const double voxels = static_cast<double>(test::count_label(b, 1) + 1); // + the relabelled speck
+    EXPECT_NEAR(label_mesh_volume(res.mesh, 1), voxels, 0.05 * voxels);
+    double min_x = 1e9;
+    for (const auto& v : res.mesh.vertices)
+        min_x = std::min(min_x, v.x);
+    EXPECT_NEAR(min_x, -0.5, 0.25); // the surface between the border voxels and the padding
+    // Too large a mesh: refused before meshing.
+    p.size = 0.05;
+    EXPECT_THROW(mesh::mesh_labels(b, p), core::InvalidInputError);
+}
+
+TEST(MeshLabels, RegionOfInterestIsFinerInsideAndGradedOutside)
+{
+    // A 40 mm cube of liver; ROI a ball of radius 5 around one corner region. Elements inside
+    // must be smaller than those far away: mean edge inside < 0.6 x mean edge beyond 15 mm (the
+    // fine size is a third of the coarse one; grading 1.5 reaches the coarse size after ~8 mm).
+    auto img = test::empty_labels(44);
+    test::paint_box(img, {2, 2, 2}, {41, 41, 41}, 1);
+    mesh::MeshParams p;
+    p.size = 4.0;
+    p.threads = 1;
+    p.roi.kind = mesh::RegionOfInterest::Kind::Spheres;
+    p.roi.centres = {{12, 12, 12}};
+    p.roi.radius = 5;
+    const auto res = mesh::mesh_labels(img, p);
+    const auto& m = res.mesh;
+    ASSERT_EQ(core::mesh_problem(m), "");
+    double in_sum = 0, out_sum = 0;
+    int in_n = 0, out_n = 0;
+    for (const auto& q : m.tets) {
+        const Vec3 cen = (m.vertices[q[0]] + m.vertices[q[1]] + m.vertices[q[2]] + m.vertices[q[3]]) / 4;
+        double e = 0;
+        for (int i = 0; i < 4; ++i)
+            for (int j = i + 1; j < 4; ++j)
+                e += core::distance(m.vertices[q[i]], m.vertices[q[j]]) / 6;
+        const double d = core::distance(cen, {12, 12, 12});
+        if (d < 5)
+            in_sum += e, ++in_n;
+        else if (d > 20)
+            out_sum += e, ++out_n;
+    }
+    ASSERT_GT(in_n, 0);
+    ASSERT_GT(out_n, 0);
+    std::printf("ROI: mean edge inside %.2f mm (%d tets), beyond 20 mm %.2f mm (%d tets), total %zu\n",
+                in_sum / in_n, in_n, out_sum / out_n, out_n, m.tets.size());
+    EXPECT_LT(in_sum / in_n, 0.6 * (out_sum / out_n));
+}

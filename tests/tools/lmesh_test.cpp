@@ -1,0 +1,165 @@
+// lmesh run as a program: exit codes, messages, outputs.
+#include "lobe/io/hdf5.h"
+#include "lobe/io/image_io.h"
+
+#include "common/run_tool.h"
+#include "common/test_data.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <string>
+
+using namespace lobe;
+namespace fs = std::filesystem;
+
+namespace {
+
+test::ToolRun lmesh(const std::string& args, const fs::path& scratch)
+{
+    return test::run_tool(LMESH_EXE, args, scratch);
+}
+
+std::string q(const fs::path& p)
+{
+    return test::shell_quote(p.string());
+}
+
+// Liver (1): a 20 mm ball; tumour (4): a 6 mm ball inside it; on 0.8 mm voxels.
+core::LabelImage3D two_tissues()
+{
+    core::ImageGeometry g;
+    g.size = {36, 36, 30};
+    g.spacing = {0.8, 0.8, 1.0};
+    g.origin = {-14, -14, -15};
+    core::LabelImage3D img(g, 0);
+    for (int k = 0; k < g.size[2]; ++k)
+        for (int j = 0; j < g.size[1]; ++j)
+            for (int i = 0; i < g.size[0]; ++i) {
+                const auto p = img.index_to_physical(i, j, k);
+                const double r = core::norm(p), rt = core::distance(p, {3, 0, 0});
+                img.at(i, j, k) = rt <= 5 ? 4 : (r <= 12 ? 1 : 0);
+            }
+    return img;
+}
+
+} // namespace
+
+TEST(Lmesh, HelpAndUsageErrors)
+{
+    const auto dir = test::scratch_dir();
+    auto r = lmesh("--help", dir);
+    EXPECT_EQ(r.exit_code, 0);
+    EXPECT_NE(r.out.find("--roi"), std::string::npos);
+    r = lmesh("in.mhd", dir); // no -o
+    EXPECT_EQ(r.exit_code, 1);
+    io::write_image(dir / "l.mhd", two_tissues());
+    r = lmesh(q(dir / "l.mhd") + " -o " + q(dir / "m.h5") + " --roi 1,2,3", dir); // a ball needs 4 numbers
+    EXPECT_EQ(r.exit_code, 1);
+    r = lmesh(q(dir / "l.mhd") + " -o " + q(dir / "m.h5") + " --roi 1,2,3,4 --roi-box 0,0,0,1,1,1", dir);
+    EXPECT_EQ(r.exit_code, 1);
+    EXPECT_FALSE(fs::exists(dir / "m.h5"));
+}
+
+TEST(Lmesh, MeshesALabelImageAndWritesEverything)
+{
+    const auto dir = test::scratch_dir();
+    const auto labels = two_tissues();
+    io::write_image(dir / "labels.mhd", labels);
+    const auto r = lmesh(q(dir / "labels.mhd") + " -o " + q(dir / "mesh.h5") + " --size 2 --threads 1 --report " +
+                             q(dir / "report.json") + " --png " + q(dir / "png") + " --export " + q(dir / "stl"),
+                         dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    io::Hdf5Reader h5(dir / "mesh.h5");
+    const auto data = h5.read_tet_mesh("liver");
+    EXPECT_EQ(core::mesh_problem(data.mesh), "");
+    bool has_combined = false;
+    for (const auto& a : data.quality)
+        if (a.name == "combined") {
+            has_combined = true;
+            EXPECT_EQ(a.values.size(), data.mesh.tets.size());
+        }
+    EXPECT_TRUE(has_combined);
+    ASSERT_EQ(data.tissues.size(), 2u);
+    EXPECT_EQ(data.tissues[1].name, "tumour");
+    const auto surfaces = h5.surfaces();
+    EXPECT_NE(std::find(surfaces.begin(), surfaces.end(), "tumour"), surfaces.end());
+    EXPECT_NE(std::find(surfaces.begin(), surfaces.end(), "outer"), surfaces.end());
+    const auto prov = h5.provenance();
+    ASSERT_EQ(prov.size(), 1u);
+    EXPECT_EQ(prov[0].tool, "lmesh");
+    bool tets_recorded = false;
+    for (const auto& [k, v] : prov[0].parameters)
+        if (k == "result.tets")
+            tets_recorded = std::stoul(v) == data.mesh.tets.size();
+    EXPECT_TRUE(tets_recorded);
+    // The report: each tissue's mesh volume within 5% of its label volume (the surface follows
+    // the voxel boundary to a fraction of a voxel on balls of 15 and 6 voxels' radius).
+    std::ifstream f(dir / "report.json");
+    const auto j = nlohmann::json::parse(f);
+    ASSERT_EQ(j["tissues"].size(), 2u);
+    for (const auto& t : j["tissues"]) {
+        EXPECT_NEAR(t["volume_ratio"].get<double>(), 1.0, 0.05) << t["name"];
+        EXPECT_EQ(t["components_meshed"], t["components"]);
+    }
+    EXPECT_EQ(j["mesh"]["tets"].get<std::size_t>(), data.mesh.tets.size());
+    EXPECT_TRUE(fs::exists(dir / "report.txt"));
+    for (const char* png : {"cut-axial-tissue.png", "cut-coronal-quality.png", "quality-histogram.png"})
+        EXPECT_GT(fs::file_size(dir / "png" / png), 1000u) << png;
+    EXPECT_TRUE(fs::exists(dir / "stl" / "tumour.stl"));
+}
+
+TEST(Lmesh, ReadsAContainerAndKeepsItsHistory)
+{
+    const auto dir = test::scratch_dir();
+    {
+        io::Hdf5Writer w(dir / "seg.h5");
+        w.write_labels("truth", two_tissues(), {{1, "liver"}, {4, "tumour"}});
+        w.write_labels("other", two_tissues());
+        io::Provenance p;
+        p.tool = "lseg";
+        p.version = "0";
+        w.write_provenance(p);
+        w.commit();
+    }
+    // Two label volumes and no --labels: refused, naming them.
+    auto r = lmesh(q(dir / "seg.h5") + " -o " + q(dir / "mesh.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("truth, other"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "mesh.h5"));
+    r = lmesh(q(dir / "seg.h5") + " --labels truth --tissues 4 --size 2 -o " + q(dir / "mesh.h5") + " --quiet", dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(r.err.empty()); // --quiet
+    io::Hdf5Reader h5(dir / "mesh.h5");
+    const auto prov = h5.provenance();
+    ASSERT_EQ(prov.size(), 2u);
+    EXPECT_EQ(prov[0].tool, "lseg");
+    EXPECT_EQ(prov[1].tool, "lmesh");
+    const auto data = h5.read_tet_mesh("liver");
+    for (auto l : data.mesh.tet_labels)
+        EXPECT_EQ(l, 4); // only the tumour was asked for
+}
+
+TEST(Lmesh, RefusesBadInputWithoutWriting)
+{
+    const auto dir = test::scratch_dir();
+    core::ImageGeometry g;
+    g.size = {10, 10, 10};
+    io::write_image(dir / "empty.mhd", core::LabelImage3D(g, 0));
+    auto r = lmesh(q(dir / "empty.mhd") + " -o " + q(dir / "mesh.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("empty.mhd"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("no voxel"), std::string::npos) << r.err;
+    core::ImageF f(g, 0.5f);
+    io::write_image(dir / "float.mhd", f);
+    r = lmesh(q(dir / "float.mhd") + " -o " + q(dir / "mesh.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("not a label image"), std::string::npos) << r.err;
+    io::write_image(dir / "l.mhd", two_tissues());
+    r = lmesh(q(dir / "l.mhd") + " -o " + q(dir / "mesh.h5") + " --size 0.01", dir); // far too many tets
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("larger element size"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "mesh.h5"));
+}

@@ -1,0 +1,116 @@
+#include "lmesh/report.h"
+
+#include <cstdio>
+#include <sstream>
+
+namespace lobe::lmesh {
+
+namespace {
+
+std::string name_of(const Report& r, int label)
+{
+    for (const auto& [l, n] : r.names)
+        if (l == label)
+            return n;
+    return label == 0 ? "outer" : "tissue_" + std::to_string(label);
+}
+
+nlohmann::json summary_json(const mesh::MeasureSummary& s)
+{
+    return {{"min", s.min}, {"mean", s.mean}, {"max", s.max}, {"count", s.count},
+            {"bands", {{"below_0.3", s.bands[0]}, {"0.3_0.5", s.bands[1]}, {"0.5_0.7", s.bands[2]}, {"above_0.7", s.bands[3]}}},
+            {"histogram", s.histogram}};
+}
+
+nlohmann::json tissue_quality_json(const mesh::TissueQuality& t)
+{
+    nlohmann::json j{{"tets", t.tets},
+                     {"volume_mm3", t.volume},
+                     {"min_dihedral_deg", t.min_dihedral_deg},
+                     {"max_dihedral_deg", t.max_dihedral_deg},
+                     {"max_radius_edge_ratio", t.max_radius_edge_ratio}};
+    for (int i = 0; i < mesh::kMeasureCount; ++i)
+        j["measures"][mesh::measure_name(static_cast<mesh::Measure>(i))] = summary_json(t.measures[static_cast<std::size_t>(i)]);
+    return j;
+}
+
+} // namespace
+
+nlohmann::json report_json(const Report& r)
+{
+    const auto& res = *r.result;
+    const auto& q = *r.quality;
+    nlohmann::json j;
+    j["input"] = r.input;
+    j["seconds"] = r.seconds;
+    j["mesh"] = {{"vertices", res.mesh.vertices.size()}, {"tets", res.mesh.tets.size()}, {"element_size_mm", res.size},
+                 {"threads", res.threads}, {"padded", res.padded}, {"reference_edge_mm", q.reference_edge}};
+    j["warnings"] = res.warnings;
+    for (const auto& t : res.tissues) {
+        nlohmann::json tj{{"label", t.label},
+                          {"name", name_of(r, t.label)},
+                          {"voxels", t.voxels},
+                          {"label_volume_mm3", t.label_volume},
+                          {"mesh_volume_mm3", t.mesh_volume},
+                          {"volume_ratio", t.label_volume > 0 ? t.mesh_volume / t.label_volume : 0.0},
+                          {"tets", t.tets},
+                          {"components", t.components},
+                          {"components_meshed", t.components_meshed},
+                          {"specks_dropped", t.specks_dropped}};
+        for (const auto& tq : q.tissues)
+            if (tq.label == t.label)
+                tj["quality"] = tissue_quality_json(tq);
+        j["tissues"].push_back(tj);
+    }
+    j["quality"] = tissue_quality_json(q.all);
+    for (const auto& c : res.components)
+        j["components"].push_back({{"label", c.label}, {"voxels", c.voxels}, {"label_volume_mm3", c.label_volume},
+                                   {"mesh_volume_mm3", c.mesh_volume}, {"tets", c.tets}, {"meshed", c.meshed}});
+    for (const auto& w : q.worst)
+        j["worst"].push_back({{"tet", w.tet}, {"label", w.label}, {"combined", w.combined},
+                              {"min_dihedral_deg", w.min_dihedral_deg}, {"max_dihedral_deg", w.max_dihedral_deg},
+                              {"centroid_mm", {w.centroid.x, w.centroid.y, w.centroid.z}}});
+    for (const auto& s : r.surfaces)
+        j["surfaces"].push_back({{"label", s.label},
+                                 {"name", s.name},
+                                 {"ok", s.check.ok()},
+                                 {"closed", s.check.closed()},
+                                 {"manifold", s.check.manifold()},
+                                 {"oriented", s.check.oriented()},
+                                 {"self_intersections", s.check.self_intersections},
+                                 {"vertices", s.check.vertices},
+                                 {"triangles", s.check.triangles},
+                                 {"components", s.check.components},
+                                 {"area_mm2", s.check.area},
+                                 {"volume_mm3", s.check.volume},
+                                 {"min_triangle_quality", s.check.min_triangle_quality},
+                                 {"mean_triangle_quality", s.check.mean_triangle_quality}});
+    return j;
+}
+
+std::string report_text(const Report& r)
+{
+    const auto& res = *r.result;
+    std::ostringstream os;
+    char buf[300];
+    std::snprintf(buf, sizeof buf, "lmesh %s: %zu tets, %zu vertices, element size %.2f mm, %d thread(s), %.2f s\n",
+                  r.input.c_str(), res.mesh.tets.size(), res.mesh.vertices.size(), res.size, res.threads, r.seconds);
+    os << buf;
+    os << "tissue            voxels   label mm^3    mesh mm^3   ratio     tets  pieces meshed/all\n";
+    for (const auto& t : res.tissues) {
+        std::snprintf(buf, sizeof buf, "%-14s %9lld %12.1f %12.1f %7.3f %8lld  %d/%d%s\n", name_of(r, t.label).c_str(),
+                      static_cast<long long>(t.voxels), t.label_volume, t.mesh_volume,
+                      t.label_volume > 0 ? t.mesh_volume / t.label_volume : 0.0, static_cast<long long>(t.tets),
+                      t.components_meshed, t.components,
+                      t.specks_dropped ? (" (" + std::to_string(t.specks_dropped) + " specks dropped)").c_str() : "");
+        os << buf;
+    }
+    for (const auto& s : r.surfaces)
+        os << "surface " << s.name << ": " << mesh::describe(s.check) << "\n";
+    for (const auto& w : res.warnings)
+        os << "warning: " << w << "\n";
+    os << mesh::format_quality_report(*r.quality);
+    return os.str();
+}
+
+} // namespace lobe::lmesh
