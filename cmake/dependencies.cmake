@@ -14,3 +14,9 @@ if(LOBE_BUILD_TOOLS)
   find_package(CLI11 REQUIRED)
   find_package(nlohmann_json 3 REQUIRED)
 endif()
+# SuiteSparse 5.12 (Debian 12) ships no CMake config: CHOLMOD and the libraries it needs by name.
+# Linked by absolute path, so the exported static lobe::mss needs no find module downstream.
+find_path(CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse REQUIRED)
+find_library(CHOLMOD_LIBRARY cholmod REQUIRED)
+find_library(SUITESPARSE_CONFIG_LIBRARY suitesparseconfig REQUIRED)
+set(CHOLMOD_LIBRARIES ${CHOLMOD_LIBRARY} ${SUITESPARSE_CONFIG_LIBRARY})

@@ -1,0 +1,370 @@
+// The mass-spring model: masses, springs, volume terms, forces and energies
+// (docs/algorithms/mass_spring.md).
+#include "lobe/mss/model.h"
+
+#include "lobe/core/errors.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <tuple>
+
+namespace lobe::mss {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kMmToM = 1e-3;
+
+bool positive_finite(double v) { return std::isfinite(v) && v > 0; }
+
+// Outward faces of a positively oriented tet (a, b, c, d): d lies on the side of face (a, b, c)
+// its normal (b - a) x (c - a) points to, so that face is listed reversed.
+constexpr int kTetFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+constexpr int kTetEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+
+} // namespace
+
+const char* stiffness_name(Stiffness s)
+{
+    switch (s) {
+    case Stiffness::Constant: return "constant";
+    case Stiffness::InverseLength: return "inverse-length";
+    case Stiffness::VanGelder: return "van-gelder";
+    case Stiffness::Havp: return "havp";
+    }
+    return "?";
+}
+
+Stiffness parse_stiffness(const std::string& name)
+{
+    for (Stiffness s : {Stiffness::Constant, Stiffness::InverseLength, Stiffness::VanGelder, Stiffness::Havp})
+        if (name == stiffness_name(s))
+            return s;
+    throw core::InvalidInputError("unknown stiffness law '" + name + "' (constant, inverse-length, van-gelder, havp)");
+}
+
+std::vector<TissueMaterial> default_tissues()
+{
+    const double e = 11000;
+    return {{1, e, 1060}, {2, 5 * e, 1060}, {3, 5 * e, 1060}, {4, 10 * e, 1060}};
+}
+
+std::vector<core::Vec3> State::positions_mm() const
+{
+    std::vector<core::Vec3> p(node_count());
+    for (std::size_t i = 0; i < p.size(); ++i)
+        p[i] = position_mm(i);
+    return p;
+}
+
+Model::Model(const core::TetMesh& mesh, const ModelParams& params) : mesh_(mesh), params_(params)
+{
+    if (const std::string problem = core::mesh_problem(mesh_); !problem.empty())
+        throw core::InvalidInputError("mass-spring model: the tet mesh " + problem);
+    if (mesh_.tets.empty())
+        throw core::InvalidInputError("mass-spring model: the tet mesh has no tets");
+    for (const auto& t : params_.tissues)
+        if (!positive_finite(t.youngs_modulus) || !positive_finite(t.density))
+            throw core::InvalidInputError("mass-spring model: tissue " + std::to_string(t.label) +
+                                          " needs a positive Young's modulus and density");
+    if (!(params_.havp_c > 0) || !(params_.volume_coefficient >= 0) || !positive_finite(params_.reference_length_mm) ||
+        !(params_.damping_ratio >= 0) || !(params_.mass_damping >= 0) || !std::isfinite(params_.havp_c) ||
+        !std::isfinite(params_.volume_coefficient) || !std::isfinite(params_.damping_ratio) ||
+        !std::isfinite(params_.mass_damping))
+        throw core::InvalidInputError("mass-spring model: havp_c and reference_length must be positive, "
+                                      "volume_coefficient, damping_ratio and mass_damping non-negative and finite");
+    for (int c = 0; c < 3; ++c)
+        if (!std::isfinite(params_.gravity[c]))
+            throw core::InvalidInputError("mass-spring model: gravity is not finite");
+    build();
+}
+
+void Model::build()
+{
+    const std::size_t n = mesh_.vertices.size(), nt = mesh_.tets.size();
+    rest_.resize(3 * n);
+    for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c)
+            rest_[3 * i + c] = mesh_.vertices[i][c] * kMmToM;
+
+    std::map<std::int32_t, TissueMaterial> materials;
+    for (const auto& t : params_.tissues)
+        materials[t.label] = t;
+    tet_e_.assign(nt, 0);
+    tet_v0_.assign(nt, 0);
+    tet_kv_.assign(nt, 0);
+    mass_.assign(n, 0);
+    for (std::size_t t = 0; t < nt; ++t) {
+        const auto it = materials.find(mesh_.tet_labels[t]);
+        if (it == materials.end())
+            throw core::InvalidInputError("mass-spring model: tet " + std::to_string(t) + " has tissue label " +
+                                          std::to_string(mesh_.tet_labels[t]) + ", which has no material");
+        const double v = core::signed_volume(mesh_, t) * kMmToM * kMmToM * kMmToM;
+        tet_e_[t] = it->second.youngs_modulus;
+        tet_v0_[t] = v;
+        for (auto i : mesh_.tets[t])
+            mass_[i] += it->second.density * v / 4;
+        if (params_.stiffness == Stiffness::Havp && params_.volume_coefficient > 0)
+            tet_kv_[t] = params_.volume_coefficient * tet_e_[t] * v / (v * v);
+    }
+    for (std::size_t i = 0; i < n; ++i)
+        if (mass_[i] <= 0)
+            throw core::InvalidInputError("mass-spring model: vertex " + std::to_string(i) + " belongs to no tet");
+    inv_mass_.resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+        inv_mass_[i] = 1 / mass_[i];
+
+    // Edges with the tets around them: sorting (a, b) pairs gives the springs in node order.
+    struct EdgeRef {
+        std::int32_t a, b;
+        std::int32_t tet;
+    };
+    std::vector<EdgeRef> refs;
+    refs.reserve(6 * nt);
+    for (std::size_t t = 0; t < nt; ++t) {
+        const auto& q = mesh_.tets[t];
+        for (const auto& e : kTetEdges) {
+            const auto a = q[e[0]], b = q[e[1]];
+            refs.push_back({std::min(a, b), std::max(a, b), static_cast<std::int32_t>(t)});
+        }
+    }
+    std::sort(refs.begin(), refs.end(), [](const EdgeRef& x, const EdgeRef& y) { return std::tie(x.a, x.b) < std::tie(y.a, y.b); });
+    springs_ = {};
+    min_edge_ = std::numeric_limits<double>::infinity();
+    const double lref = params_.reference_length_mm * kMmToM;
+    for (std::size_t r = 0; r < refs.size();) {
+        std::size_t e = r;
+        double sum_e = 0, sum_ev = 0;
+        int count = 0;
+        for (; e < refs.size() && refs[e].a == refs[r].a && refs[e].b == refs[r].b; ++e) {
+            sum_e += tet_e_[refs[e].tet];
+            sum_ev += tet_e_[refs[e].tet] * tet_v0_[refs[e].tet];
+            ++count;
+        }
+        const auto a = refs[r].a, b = refs[r].b;
+        double l2 = 0;
+        for (int c = 0; c < 3; ++c)
+            l2 += (rest_[3 * b + c] - rest_[3 * a + c]) * (rest_[3 * b + c] - rest_[3 * a + c]);
+        const double l = std::sqrt(l2);
+        double k = 0;
+        switch (params_.stiffness) {
+        case Stiffness::Constant: k = sum_e / count * lref; break;
+        case Stiffness::InverseLength: k = sum_e / count * lref * lref / l; break;
+        case Stiffness::VanGelder: k = sum_ev / l2; break;
+        case Stiffness::Havp: k = params_.havp_c * sum_e * l; break;
+        }
+        const double mu = mass_[a] * mass_[b] / (mass_[a] + mass_[b]);
+        springs_.a.push_back(a);
+        springs_.b.push_back(b);
+        springs_.rest_length.push_back(l);
+        springs_.stiffness.push_back(k);
+        springs_.damping.push_back(2 * params_.damping_ratio * std::sqrt(mu * k));
+        min_edge_ = std::min(min_edge_, l);
+        r = e;
+    }
+
+    // Boundary faces: faces met once. Sorted vertex triples identify a face.
+    struct FaceRef {
+        std::array<std::int32_t, 3> key;
+        std::array<std::int32_t, 3> face;
+    };
+    std::vector<FaceRef> faces;
+    faces.reserve(4 * nt);
+    for (const auto& q : mesh_.tets)
+        for (const auto& f : kTetFaces) {
+            FaceRef ref{{q[f[0]], q[f[1]], q[f[2]]}, {q[f[0]], q[f[1]], q[f[2]]}};
+            std::sort(ref.key.begin(), ref.key.end());
+            faces.push_back(ref);
+        }
+    std::sort(faces.begin(), faces.end(), [](const FaceRef& x, const FaceRef& y) { return x.key < y.key; });
+    surface_faces_.clear();
+    std::vector<char> on_surface(n, 0);
+    for (std::size_t r = 0; r < faces.size();) {
+        std::size_t e = r;
+        while (e < faces.size() && faces[e].key == faces[r].key)
+            ++e;
+        if (e - r == 1) {
+            surface_faces_.push_back(faces[r].face);
+            for (auto v : faces[r].face)
+                on_surface[v] = 1;
+        }
+        r = e;
+    }
+    surface_nodes_.clear();
+    for (std::size_t i = 0; i < n; ++i)
+        if (on_surface[i])
+            surface_nodes_.push_back(static_cast<std::int32_t>(i));
+
+    // Time step bounds.
+    dt_critical_ = std::numeric_limits<double>::infinity();
+    std::vector<double> row(3 * n, 0.0);
+    for (std::size_t s = 0; s < springs_.size(); ++s) {
+        const auto a = springs_.a[s], b = springs_.b[s];
+        const double k = springs_.stiffness[s];
+        dt_critical_ = std::min(dt_critical_, kPi * std::sqrt(std::min(mass_[a], mass_[b]) / k));
+        double d[3], sum = 0;
+        for (int c = 0; c < 3; ++c) {
+            d[c] = (rest_[3 * b + c] - rest_[3 * a + c]) / springs_.rest_length[s];
+            sum += std::abs(d[c]);
+        }
+        for (int c = 0; c < 3; ++c) {
+            // |k d d^T| row c, once in the diagonal block and once in the off-diagonal one.
+            row[3 * a + c] += 2 * k * std::abs(d[c]) * sum;
+            row[3 * b + c] += 2 * k * std::abs(d[c]) * sum;
+        }
+    }
+    for (std::size_t t = 0; t < nt; ++t) {
+        if (tet_kv_[t] == 0)
+            continue;
+        const auto& q = mesh_.tets[t];
+        core::Vec3 x[4];
+        for (int i = 0; i < 4; ++i)
+            x[i] = {rest_[3 * q[i]], rest_[3 * q[i] + 1], rest_[3 * q[i] + 2]};
+        const core::Vec3 g[4] = {cross(x[3] - x[1], x[2] - x[1]) / 6, cross(x[2] - x[0], x[3] - x[0]) / 6,
+                                 cross(x[3] - x[0], x[1] - x[0]) / 6, cross(x[1] - x[0], x[2] - x[0]) / 6};
+        double all = 0;
+        for (const auto& gi : g)
+            all += std::abs(gi.x) + std::abs(gi.y) + std::abs(gi.z);
+        for (int i = 0; i < 4; ++i)
+            for (int c = 0; c < 3; ++c)
+                row[3 * q[i] + c] += tet_kv_[t] * std::abs(g[i][c]) * all;
+    }
+    double lambda = 0;
+    for (std::size_t i = 0; i < 3 * n; ++i)
+        lambda = std::max(lambda, row[i] * inv_mass_[i / 3]);
+    dt_gershgorin_ = 2 / std::sqrt(lambda);
+}
+
+double Model::total_mass() const
+{
+    double m = 0;
+    for (double v : mass_)
+        m += v;
+    return m;
+}
+
+double Model::rest_volume() const
+{
+    double v = 0;
+    for (double t : tet_v0_)
+        v += t;
+    return v;
+}
+
+void Model::set_fixed(std::size_t i, bool fixed)
+{
+    if (i >= mass_.size())
+        throw core::InvalidInputError("mass-spring model: node " + std::to_string(i) + " does not exist");
+    inv_mass_[i] = fixed ? 0 : 1 / mass_[i];
+}
+
+std::size_t Model::fix_box(const core::Vec3& lo, const core::Vec3& hi)
+{
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < mesh_.vertices.size(); ++i) {
+        const auto& p = mesh_.vertices[i];
+        if (p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y && p.z >= lo.z && p.z <= hi.z) {
+            inv_mass_[i] = 0;
+            ++count;
+        }
+    }
+    return count;
+}
+
+State Model::rest_state() const
+{
+    State s;
+    s.x = rest_;
+    s.v.assign(rest_.size(), 0.0);
+    return s;
+}
+
+void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
+{
+    const std::size_t n = mass_.size();
+    f.assign(3 * n, 0.0);
+    const double* x = s.x.data();
+    const double* v = s.v.data();
+    double* F = f.data();
+    double e_springs = 0;
+
+    // The hot loop: one pass over the springs in node order, no branches.
+    const std::int32_t* sa = springs_.a.data();
+    const std::int32_t* sb = springs_.b.data();
+    const double* l0 = springs_.rest_length.data();
+    const double* ks = springs_.stiffness.data();
+    const double* cs = springs_.damping.data();
+    const std::size_t ns = springs_.size();
+    for (std::size_t k = 0; k < ns; ++k) {
+        const std::size_t a = 3 * static_cast<std::size_t>(sa[k]), b = 3 * static_cast<std::size_t>(sb[k]);
+        const double dx = x[b] - x[a], dy = x[b + 1] - x[a + 1], dz = x[b + 2] - x[a + 2];
+        const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+        const double inv = 1 / l;
+        const double ext = l - l0[k];
+        const double vrel = ((v[b] - v[a]) * dx + (v[b + 1] - v[a + 1]) * dy + (v[b + 2] - v[a + 2]) * dz) * inv;
+        // Positive magnitude pulls a towards b: a stretched or separating spring.
+        const double m = (ks[k] * ext + cs[k] * vrel) * inv;
+        F[a] += m * dx;
+        F[a + 1] += m * dy;
+        F[a + 2] += m * dz;
+        F[b] -= m * dx;
+        F[b + 1] -= m * dy;
+        F[b + 2] -= m * dz;
+        e_springs += 0.5 * ks[k] * ext * ext;
+    }
+
+    double e_volume = 0;
+    if (params_.stiffness == Stiffness::Havp && params_.volume_coefficient > 0) {
+        for (std::size_t t = 0; t < mesh_.tets.size(); ++t) {
+            const auto& q = mesh_.tets[t];
+            core::Vec3 p[4];
+            for (int i = 0; i < 4; ++i)
+                p[i] = {x[3 * q[i]], x[3 * q[i] + 1], x[3 * q[i] + 2]};
+            // Gradients of V (the thesis's eq. 6.8 with its sign errors corrected: they sum to 0).
+            const core::Vec3 g[4] = {cross(p[3] - p[1], p[2] - p[1]) / 6, cross(p[2] - p[0], p[3] - p[0]) / 6,
+                                     cross(p[3] - p[0], p[1] - p[0]) / 6, cross(p[1] - p[0], p[2] - p[0]) / 6};
+            const double vol = dot(p[1] - p[0], cross(p[2] - p[0], p[3] - p[0])) / 6;
+            const double dv = vol - tet_v0_[t];
+            // E = k_V/2 ((V - V0)/V0)^2, so f_i = -(k_V / V0^2) (V - V0) grad_i V.
+            const double m = -tet_kv_[t] * dv;
+            for (int i = 0; i < 4; ++i) {
+                F[3 * q[i]] += m * g[i].x;
+                F[3 * q[i] + 1] += m * g[i].y;
+                F[3 * q[i] + 2] += m * g[i].z;
+            }
+            e_volume += 0.5 * tet_kv_[t] * dv * dv;
+        }
+    }
+
+    const double gx = params_.gravity.x, gy = params_.gravity.y, gz = params_.gravity.z;
+    const double alpha = params_.mass_damping;
+    double e_gravity = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double m = mass_[i];
+        F[3 * i] += m * (gx - alpha * v[3 * i]);
+        F[3 * i + 1] += m * (gy - alpha * v[3 * i + 1]);
+        F[3 * i + 2] += m * (gz - alpha * v[3 * i + 2]);
+        if (energy)
+            e_gravity -= m * (gx * (x[3 * i] - rest_[3 * i]) + gy * (x[3 * i + 1] - rest_[3 * i + 1]) +
+                              gz * (x[3 * i + 2] - rest_[3 * i + 2]));
+    }
+    if (energy) {
+        energy->springs = e_springs;
+        energy->volume = e_volume;
+        energy->gravity = e_gravity;
+    }
+}
+
+Energy Model::energy(const State& s) const
+{
+    Energy e;
+    std::vector<double> f;
+    forces(s, f, &e);
+    for (std::size_t i = 0; i < mass_.size(); ++i)
+        e.kinetic += 0.5 * mass_[i] *
+                     (s.v[3 * i] * s.v[3 * i] + s.v[3 * i + 1] * s.v[3 * i + 1] + s.v[3 * i + 2] * s.v[3 * i + 2]);
+    return e;
+}
+
+} // namespace lobe::mss
