@@ -88,6 +88,9 @@ struct ImplicitSolver::Impl {
                 }
                 tet_spring[t][e] = int(lo);
             }
+        // Simplicial: the systems of interactive meshes are small and very sparse, where the
+        // supernodal BLAS path only adds overhead (measured in docs/benchmarks.md).
+        cholmod.setMode(Eigen::CholmodSimplicialLLt);
         cg.setTolerance(p.cg_tolerance);
         cg.setMaxIterations(p.cg_max_iterations);
     }

@@ -64,9 +64,10 @@ struct SimulatorParams {
     int cg_max_iterations = 1000;
     //! Blow-up: any node faster than this [m/s] (tissue under an instrument moves at mm/s to cm/s).
     double max_speed = 50;
-    //! Blow-up: the energy (kinetic + elastic + |gravity|) grew more than this factor over one
-    //! check interval, above a floor of the elastic energy of a 0.1 % strain of the whole body.
-    double energy_growth = 10;
+    //! Blow-up: over one check interval the total energy (gravity included) rose, beyond the
+    //! work of the instruments, by more than (energy_growth - 1) x the energy magnitude
+    //! (kinetic + elastic + |gravity|, at least the elastic energy of a 0.1 % strain of the body).
+    double energy_growth = 2;
     int check_interval = 20; //!< steps between blow-up checks on the energy and saved good states
 };
 
