@@ -168,17 +168,20 @@ void Model::build()
     struct FaceRef {
         std::array<std::int32_t, 3> key;
         std::array<std::int32_t, 3> face;
+        std::int32_t tet;
     };
     std::vector<FaceRef> faces;
     faces.reserve(4 * nt);
-    for (const auto& q : mesh_.tets)
+    for (std::size_t t = 0; t < nt; ++t)
         for (const auto& f : kTetFaces) {
-            FaceRef ref{{q[f[0]], q[f[1]], q[f[2]]}, {q[f[0]], q[f[1]], q[f[2]]}};
+            const auto& q = mesh_.tets[t];
+            FaceRef ref{{q[f[0]], q[f[1]], q[f[2]]}, {q[f[0]], q[f[1]], q[f[2]]}, static_cast<std::int32_t>(t)};
             std::sort(ref.key.begin(), ref.key.end());
             faces.push_back(ref);
         }
     std::sort(faces.begin(), faces.end(), [](const FaceRef& x, const FaceRef& y) { return x.key < y.key; });
     surface_faces_.clear();
+    surface_face_tets_.clear();
     std::vector<char> on_surface(n, 0);
     for (std::size_t r = 0; r < faces.size();) {
         std::size_t e = r;
@@ -186,6 +189,7 @@ void Model::build()
             ++e;
         if (e - r == 1) {
             surface_faces_.push_back(faces[r].face);
+            surface_face_tets_.push_back(faces[r].tet);
             for (auto v : faces[r].face)
                 on_surface[v] = 1;
         }

@@ -137,6 +137,8 @@ public:
     const std::vector<std::int32_t>& surface_nodes() const { return surface_nodes_; }
     //! Boundary faces, oriented outward.
     const std::vector<std::array<std::int32_t, 3>>& surface_faces() const { return surface_faces_; }
+    //! The tet each boundary face belongs to.
+    const std::vector<std::int32_t>& surface_face_tets() const { return surface_face_tets_; }
 
     //! The state at rest: rest positions, zero velocities, time 0.
     State rest_state() const;
@@ -169,6 +171,7 @@ private:
     std::vector<double> tet_e_, tet_v0_, tet_kv_;
     std::vector<std::int32_t> surface_nodes_;
     std::vector<std::array<std::int32_t, 3>> surface_faces_;
+    std::vector<std::int32_t> surface_face_tets_;
     double dt_critical_ = 0, dt_gershgorin_ = 0, min_edge_ = 0;
 };
 
