@@ -72,7 +72,8 @@ struct Simulator::Impl {
     SimulatorParams params;
     State state;
     std::vector<ProbeParams> probes;
-    std::vector<double> force, force_next, accel_scratch, dv;
+    std::vector<double> force, force_next, dv, v_old, v_pred;
+    std::vector<int> touched; // per node: the index + 1 of the probe that moved it this step
     Energy energy; // of `state`
     double dt = 0, dt_max = 0, dt_floor = 0, dt_cap = 0;
     double tolerance = 0, energy_floor = 0;
@@ -157,7 +158,7 @@ struct Simulator::Impl {
     // delta / h to v. Marks each moved node with its probe's index + 1. Returns the nodes moved.
     // The reaction is the impulse the projection gave, m delta / h^2 per node: exact momentum
     // bookkeeping for the explicit integrators (implicit_reaction replaces it for backward Euler).
-    int contact(State& s, double h, core::Vec3& reaction, std::vector<int>& touched, double& work) const
+    int contact(State& s, double h, core::Vec3& reaction, std::vector<int>& moved, double& work) const
     {
         int count = 0;
         const auto& m = model.masses();
@@ -187,7 +188,7 @@ struct Simulator::Impl {
                     reaction[k] -= m[std::size_t(i)] * delta / (h * h);
                     work += m[std::size_t(i)] * delta / h * vp[k];
                 }
-                touched[std::size_t(i)] = int(p) + 1;
+                moved[std::size_t(i)] = int(p) + 1;
                 ++count;
             }
         }
@@ -198,13 +199,13 @@ struct Simulator::Impl {
     // so the projection impulse no longer measures the contact force. The contact carries instead
     // the normal part of the force the rest of the tissue exerts on each touched node (exact at
     // rest, where it balances the supports).
-    void implicit_reaction(const State& s, double h, const std::vector<double>& f, const std::vector<int>& touched,
+    void implicit_reaction(const State& s, double h, const std::vector<double>& f, const std::vector<int>& moved,
                            core::Vec3& reaction, double& work) const
     {
-        for (std::size_t i = 0; i < touched.size(); ++i) {
-            if (!touched[i])
+        for (std::size_t i = 0; i < moved.size(); ++i) {
+            if (!moved[i])
                 continue;
-            const auto& probe = probes[std::size_t(touched[i] - 1)];
+            const auto& probe = probes[std::size_t(moved[i] - 1)];
             const core::Vec3 c = probe_position(probe, s.time) * 1e-3;
             const core::Vec3 vp = (c - probe_position(probe, s.time - h) * 1e-3) / h;
             const core::Vec3 n = normalized(core::Vec3{s.x[3 * i], s.x[3 * i + 1], s.x[3 * i + 2]} - c);
@@ -222,43 +223,51 @@ struct Simulator::Impl {
     {
         const std::size_t n = model.node_count();
         const auto& inv = model.inverse_masses();
-        State next = state;
+        // In place: a blow-up goes back to the checkpoint, so the old state is not needed.
+        State& next = state;
         next.time = state.time + h;
-        std::vector<int> touched(probes.empty() ? 0 : n, 0);
+        if (!probes.empty())
+            touched.assign(n, 0);
         core::Vec3 reaction{0, 0, 0};
         int contacts = 0;
         Energy e_next;
+        double* x = next.x.data();
+        double* v = next.v.data();
         switch (params.integrator) {
         case Integrator::SymplecticEuler:
-            for (std::size_t i = 0; i < 3 * n; ++i) {
-                next.v[i] += h * force[i] * inv[i / 3];
-                next.x[i] += h * next.v[i];
+            for (std::size_t i = 0; i < n; ++i) {
+                const double w = h * inv[i];
+                for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                    v[k] += w * force[k];
+                    x[k] += h * v[k];
+                }
             }
             if (!probes.empty())
                 contacts = contact(next, h, reaction, touched, probe_work);
             evaluate(next, force_next, e_next);
             break;
         case Integrator::VelocityVerlet: {
-            for (std::size_t i = 0; i < 3 * n; ++i) {
-                const double a = force[i] * inv[i / 3];
-                next.x[i] += h * state.v[i] + 0.5 * h * h * a;
-                next.v[i] += h * a; // predicted, for the damping forces
-            }
-            std::vector<double> before;
+            v_old = next.v;
+            for (std::size_t i = 0; i < n; ++i)
+                for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                    const double a = force[k] * inv[i];
+                    x[k] += h * v[k] + 0.5 * h * h * a;
+                    v[k] += h * a; // predicted, for the damping forces
+                }
             if (!probes.empty()) {
-                before = next.v;
+                v_pred = next.v;
                 contacts = contact(next, h, reaction, touched, probe_work);
             }
             model.forces(next, force_next, &e_next);
-            for (std::size_t i = 0; i < 3 * n; ++i) {
-                const double correction = before.empty() ? 0 : next.v[i] - before[i];
-                next.v[i] = state.v[i] + 0.5 * h * (force[i] + force_next[i]) * inv[i / 3] + correction;
-            }
+            for (std::size_t i = 0; i < n; ++i)
+                for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                    const double correction = probes.empty() ? 0 : v[k] - v_pred[k];
+                    v[k] = v_old[k] + 0.5 * h * (force[k] + force_next[k]) * inv[i] + correction;
+                }
             e_next.kinetic = 0;
             const auto& m = model.masses();
             for (std::size_t i = 0; i < n; ++i)
-                e_next.kinetic += 0.5 * m[i] * (next.v[3 * i] * next.v[3 * i] + next.v[3 * i + 1] * next.v[3 * i + 1] +
-                                                next.v[3 * i + 2] * next.v[3 * i + 2]);
+                e_next.kinetic += 0.5 * m[i] * (v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
             // Damping forces were evaluated with the predicted velocity; refresh them.
             if (model.params().damping_ratio > 0 || model.params().mass_damping > 0)
                 model.forces(next, force_next);
@@ -266,10 +275,11 @@ struct Simulator::Impl {
         }
         case Integrator::BackwardEuler: {
             stats.cg_iterations += implicit->solve(state, force, h, dv);
-            for (std::size_t i = 0; i < 3 * n; ++i) {
-                next.v[i] += inv[i / 3] == 0 ? 0 : dv[i];
-                next.x[i] += h * next.v[i];
-            }
+            for (std::size_t i = 0; i < n; ++i)
+                for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                    v[k] += inv[i] == 0 ? 0 : dv[k];
+                    x[k] += h * v[k];
+                }
             if (!probes.empty()) {
                 double ignored = 0;
                 contacts = contact(next, h, reaction, touched, ignored);
@@ -295,7 +305,6 @@ struct Simulator::Impl {
             err = std::max(err, d2);
         }
         err = 0.5 * h * h * std::sqrt(err);
-        state = std::move(next);
         force.swap(force_next);
         energy = e_next;
         info.time = state.time;
