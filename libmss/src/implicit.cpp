@@ -36,8 +36,9 @@ struct ImplicitSolver::Impl {
     Eigen::CholmodDecomposition<SpMat, Eigen::Lower> cholmod;
     Eigen::ConjugateGradient<SpMat, Eigen::Lower, Eigen::DiagonalPreconditioner<double>> cg;
     Eigen::VectorXd guess;
-    bool analysed = false;
+    bool analysed = false, factored = false;
     std::int64_t factorizations = 0;
+    int since_factor = 0;
 
     static constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
 
@@ -88,9 +89,9 @@ struct ImplicitSolver::Impl {
                 }
                 tet_spring[t][e] = int(lo);
             }
-        // Simplicial: the systems of interactive meshes are small and very sparse, where the
-        // supernodal BLAS path only adds overhead (measured in docs/benchmarks.md).
-        cholmod.setMode(Eigen::CholmodSimplicialLLt);
+        // CHOLMOD's own choice (supernodal above a fill-in threshold): simplicial LL^T took 7 s
+        // per step at 9k nodes against well under a second supernodal (docs/benchmarks.md).
+        cholmod.setMode(Eigen::CholmodAuto);
         cg.setTolerance(p.cg_tolerance);
         cg.setMaxIterations(p.cg_max_iterations);
     }
@@ -220,12 +221,33 @@ struct ImplicitSolver::Impl {
                 cholmod.analyzePattern(a);
                 analysed = true;
             }
-            cholmod.factorize(a);
-            ++factorizations;
-            if (cholmod.info() != Eigen::Success)
-                throw core::SolverError("backward Euler: CHOLMOD could not factorise the system matrix (not positive "
-                                        "definite: a tet inverted?)");
-            sol = cholmod.solve(rhs);
+            // Reuse the last factorisation while it still solves the current system: iterative
+            // refinement with the old factor converges when the matrix has changed little (the
+            // same dt, moderate deformation); otherwise factorise again.
+            bool solved = false;
+            if (factored && since_factor < params.refactor_interval) {
+                const SpMat full = a.selfadjointView<Eigen::Lower>();
+                sol = cholmod.solve(rhs);
+                const double norm_b = std::max(rhs.norm(), 1e-300);
+                for (int it = 0; it < 8 && !solved; ++it) {
+                    const Eigen::VectorXd r = rhs - full * sol;
+                    if (r.norm() <= params.cg_tolerance * norm_b)
+                        solved = true;
+                    else
+                        sol += cholmod.solve(r);
+                }
+                ++since_factor;
+            }
+            if (!solved) {
+                cholmod.factorize(a);
+                ++factorizations;
+                factored = cholmod.info() == Eigen::Success;
+                since_factor = 0;
+                if (!factored)
+                    throw core::SolverError("backward Euler: CHOLMOD could not factorise the system matrix (not "
+                                            "positive definite: a tet inverted?)");
+                sol = cholmod.solve(rhs);
+            }
         } else {
             cg.compute(a);
             if (guess.size() != rhs.size())

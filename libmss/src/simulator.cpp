@@ -92,7 +92,7 @@ struct Simulator::Impl {
         auto bad = [](double v) { return !std::isfinite(v) || v < 0; };
         if (bad(ts.dt) || !(ts.safety > 0) || bad(ts.safety) || !(ts.max_factor > 0) || bad(ts.max_factor) ||
             !(ts.floor_factor > 0) || bad(ts.floor_factor) || !(ts.tolerance > 0) || bad(ts.tolerance) ||
-            !(params.max_speed > 0) || !(params.energy_growth > 1) || params.check_interval < 1 ||
+            !(params.max_speed > 0) || !(params.energy_growth > 1) || params.check_interval < 1 || params.refactor_interval < 1 ||
             !(params.cg_tolerance > 0) || params.cg_max_iterations < 1)
             throw core::InvalidInputError("simulator: time step factors, tolerance, max_speed, cg settings must be "
                                           "positive, energy_growth above 1, check_interval at least 1");

@@ -143,7 +143,9 @@ TEST(MssSimulator, ImplicitIsStableAtLargeStepsAndReachesTheSameEquilibrium)
     // CG solves the same systems to 1e-8: the results agree far below 1e-5 relative.
     EXPECT_NEAR(sag_cg, sag_i, 1e-5 * std::abs(sag_i));
     EXPECT_GT(implicit_cg.statistics().cg_iterations, 0);
-    EXPECT_EQ(implicit.statistics().factorizations, implicit.statistics().steps);
+    // The factorisation is reused across steps (refinement reached 1e-8 against the new matrix).
+    EXPECT_GE(implicit.statistics().factorizations, 1);
+    EXPECT_LT(implicit.statistics().factorizations, implicit.statistics().steps);
 }
 
 TEST(MssSimulator, MomentumIsConservedWithoutDampingOrFixedNodes)

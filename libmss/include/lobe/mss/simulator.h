@@ -60,8 +60,11 @@ struct SimulatorParams {
     Integrator integrator = Integrator::SymplecticEuler;
     LinearSolver solver = LinearSolver::Cholmod;
     TimeStepParams time_step;
-    double cg_tolerance = 1e-8;  //!< relative residual of CG
+    double cg_tolerance = 1e-8;  //!< relative residual of CG, and of CHOLMOD solves that reuse a factor
     int cg_max_iterations = 1000;
+    //! CHOLMOD: steps a factorisation may be reused for (by iterative refinement against the
+    //! current matrix, refactorising whenever that does not reach cg_tolerance); 1 = every step.
+    int refactor_interval = 100;
     //! Blow-up: any node faster than this [m/s] (tissue under an instrument moves at mm/s to cm/s).
     double max_speed = 50;
     //! Blow-up: over one check interval the total energy (gravity included) rose, beyond the
