@@ -211,7 +211,9 @@ std::string xdmf_document(const XdmfContents& contents, const std::string& h5_fi
     for (const auto& s : contents.simulations)
         if (!s.times.empty() && s.mesh.vertices > 0 && s.mesh.tets > 0)
             simulations.push_back(s);
-    doc.collection("simulation", simulations, [&](const XdmfSimulation& s) { doc.simulation(3, s); });
+    // Temporal collections sit directly in the Domain, where every ParaView reader looks for time.
+    for (const auto& s : simulations)
+        doc.simulation(2, s);
     doc.line(1, "</Domain>");
     doc.line(0, "</Xdmf>");
     return doc.str();
