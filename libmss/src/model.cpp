@@ -164,6 +164,12 @@ void Model::build()
         r = e;
     }
 
+    spring_first_.assign(n + 1, 0);
+    for (std::size_t k = 0; k < springs_.size(); ++k)
+        ++spring_first_[std::size_t(springs_.a[k]) + 1];
+    for (std::size_t i = 0; i < n; ++i)
+        spring_first_[i + 1] += spring_first_[i];
+
     // Boundary faces: faces met once. Sorted vertex triples identify a face.
     struct FaceRef {
         std::array<std::int32_t, 3> key;
@@ -293,67 +299,98 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
     double* F = f.data();
     double e_springs = 0;
 
-    // The hot loop: one pass over the springs in node order, no branches.
-    const std::int32_t* sa = springs_.a.data();
+    // The hot loop: one pass over the springs grouped by their first node a (they are sorted),
+    // so a's position, velocity and force sum stay in registers for the group: only the second
+    // node's force goes through memory, and no store-to-load chain forms on a.
     const std::int32_t* sb = springs_.b.data();
     const double* l0 = springs_.rest_length.data();
     const double* ks = springs_.stiffness.data();
     const double* cs = springs_.damping.data();
-    const std::size_t ns = springs_.size();
-    for (std::size_t k = 0; k < ns; ++k) {
-        const std::size_t a = 3 * static_cast<std::size_t>(sa[k]), b = 3 * static_cast<std::size_t>(sb[k]);
-        const double dx = x[b] - x[a], dy = x[b + 1] - x[a + 1], dz = x[b + 2] - x[a + 2];
-        const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-        const double inv = 1 / l;
-        const double ext = l - l0[k];
-        const double vrel = ((v[b] - v[a]) * dx + (v[b + 1] - v[a + 1]) * dy + (v[b + 2] - v[a + 2]) * dz) * inv;
-        // Positive magnitude pulls a towards b: a stretched or separating spring.
-        const double m = (ks[k] * ext + cs[k] * vrel) * inv;
-        F[a] += m * dx;
-        F[a + 1] += m * dy;
-        F[a + 2] += m * dz;
-        F[b] -= m * dx;
-        F[b + 1] -= m * dy;
-        F[b + 2] -= m * dz;
-        e_springs += 0.5 * ks[k] * ext * ext;
+    const std::int32_t* first = spring_first_.data();
+    for (std::size_t na = 0; na < n; ++na) {
+        const std::int32_t k0 = first[na], k1 = first[na + 1];
+        if (k0 == k1)
+            continue;
+        const std::size_t a = 3 * na;
+        const double xa = x[a], ya = x[a + 1], za = x[a + 2];
+        const double ua = v[a], va = v[a + 1], wa = v[a + 2];
+        double fx = 0, fy = 0, fz = 0, e = 0;
+        for (std::int32_t k = k0; k < k1; ++k) {
+            const std::size_t b = 3 * static_cast<std::size_t>(sb[k]);
+            const double dx = x[b] - xa, dy = x[b + 1] - ya, dz = x[b + 2] - za;
+            const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+            const double inv = 1 / l;
+            const double ext = l - l0[k];
+            const double vrel = ((v[b] - ua) * dx + (v[b + 1] - va) * dy + (v[b + 2] - wa) * dz) * inv;
+            // Positive magnitude pulls a towards b: a stretched or separating spring.
+            const double m = (ks[k] * ext + cs[k] * vrel) * inv;
+            fx += m * dx;
+            fy += m * dy;
+            fz += m * dz;
+            F[b] -= m * dx;
+            F[b + 1] -= m * dy;
+            F[b + 2] -= m * dz;
+            e += ks[k] * ext * ext;
+        }
+        F[a] += fx;
+        F[a + 1] += fy;
+        F[a + 2] += fz;
+        e_springs += 0.5 * e;
     }
 
     double e_volume = 0;
     if (params_.stiffness == Stiffness::Havp && params_.volume_coefficient > 0) {
-        for (std::size_t t = 0; t < mesh_.tets.size(); ++t) {
-            const auto& q = mesh_.tets[t];
-            core::Vec3 p[4];
-            for (int i = 0; i < 4; ++i)
-                p[i] = {x[3 * q[i]], x[3 * q[i] + 1], x[3 * q[i] + 2]};
-            // Gradients of V (the thesis's eq. 6.8 with its sign errors corrected: they sum to 0).
-            const core::Vec3 g[4] = {cross(p[3] - p[1], p[2] - p[1]) / 6, cross(p[2] - p[0], p[3] - p[0]) / 6,
-                                     cross(p[3] - p[0], p[1] - p[0]) / 6, cross(p[1] - p[0], p[2] - p[0]) / 6};
-            const double vol = dot(p[1] - p[0], cross(p[2] - p[0], p[3] - p[0])) / 6;
-            const double dv = vol - tet_v0_[t];
+        const std::size_t nt = mesh_.tets.size();
+        const std::int32_t* tq = mesh_.tets.data()->data();
+        const double* v0 = tet_v0_.data();
+        const double* kv = tet_kv_.data();
+        for (std::size_t t = 0; t < nt; ++t) {
+            const std::size_t i0 = 3 * std::size_t(tq[4 * t]), i1 = 3 * std::size_t(tq[4 * t + 1]),
+                              i2 = 3 * std::size_t(tq[4 * t + 2]), i3 = 3 * std::size_t(tq[4 * t + 3]);
+            const double e1x = x[i1] - x[i0], e1y = x[i1 + 1] - x[i0 + 1], e1z = x[i1 + 2] - x[i0 + 2];
+            const double e2x = x[i2] - x[i0], e2y = x[i2 + 1] - x[i0 + 1], e2z = x[i2 + 2] - x[i0 + 2];
+            const double e3x = x[i3] - x[i0], e3y = x[i3 + 1] - x[i0 + 1], e3z = x[i3 + 2] - x[i0 + 2];
+            // Gradients of V (the thesis's eq. 6.8 with its sign errors corrected): 6 grad_1 V =
+            // e2 x e3, 6 grad_2 V = e3 x e1, 6 grad_3 V = e1 x e2, and grad_0 V = -(their sum),
+            // so the four sum to zero by construction.
+            const double g1x = e2y * e3z - e2z * e3y, g1y = e2z * e3x - e2x * e3z, g1z = e2x * e3y - e2y * e3x;
+            const double g2x = e3y * e1z - e3z * e1y, g2y = e3z * e1x - e3x * e1z, g2z = e3x * e1y - e3y * e1x;
+            const double g3x = e1y * e2z - e1z * e2y, g3y = e1z * e2x - e1x * e2z, g3z = e1x * e2y - e1y * e2x;
+            const double vol = (e1x * g1x + e1y * g1y + e1z * g1z) / 6;
+            const double dv = vol - v0[t];
             // E = k_V/2 ((V - V0)/V0)^2, so f_i = -(k_V / V0^2) (V - V0) grad_i V.
-            const double m = -tet_kv_[t] * dv;
-            for (int i = 0; i < 4; ++i) {
-                F[3 * q[i]] += m * g[i].x;
-                F[3 * q[i] + 1] += m * g[i].y;
-                F[3 * q[i] + 2] += m * g[i].z;
-            }
-            e_volume += 0.5 * tet_kv_[t] * dv * dv;
+            const double m = -kv[t] * dv / 6;
+            F[i1] += m * g1x;
+            F[i1 + 1] += m * g1y;
+            F[i1 + 2] += m * g1z;
+            F[i2] += m * g2x;
+            F[i2 + 1] += m * g2y;
+            F[i2 + 2] += m * g2z;
+            F[i3] += m * g3x;
+            F[i3 + 1] += m * g3y;
+            F[i3 + 2] += m * g3z;
+            F[i0] -= m * (g1x + g2x + g3x);
+            F[i0 + 1] -= m * (g1y + g2y + g3y);
+            F[i0 + 2] -= m * (g1z + g2z + g3z);
+            e_volume += 0.5 * kv[t] * dv * dv;
         }
     }
 
     const double gx = params_.gravity.x, gy = params_.gravity.y, gz = params_.gravity.z;
     const double alpha = params_.mass_damping;
-    double e_gravity = 0;
+    double e_gravity = 0, e_kinetic = 0;
     for (std::size_t i = 0; i < n; ++i) {
         const double m = mass_[i];
-        F[3 * i] += m * (gx - alpha * v[3 * i]);
-        F[3 * i + 1] += m * (gy - alpha * v[3 * i + 1]);
-        F[3 * i + 2] += m * (gz - alpha * v[3 * i + 2]);
-        if (energy)
-            e_gravity -= m * (gx * (x[3 * i] - rest_[3 * i]) + gy * (x[3 * i + 1] - rest_[3 * i + 1]) +
-                              gz * (x[3 * i + 2] - rest_[3 * i + 2]));
+        const double* vi = v + 3 * i;
+        F[3 * i] += m * (gx - alpha * vi[0]);
+        F[3 * i + 1] += m * (gy - alpha * vi[1]);
+        F[3 * i + 2] += m * (gz - alpha * vi[2]);
+        e_gravity -= m * (gx * (x[3 * i] - rest_[3 * i]) + gy * (x[3 * i + 1] - rest_[3 * i + 1]) +
+                          gz * (x[3 * i + 2] - rest_[3 * i + 2]));
+        e_kinetic += 0.5 * m * (vi[0] * vi[0] + vi[1] * vi[1] + vi[2] * vi[2]);
     }
     if (energy) {
+        energy->kinetic = e_kinetic;
         energy->springs = e_springs;
         energy->volume = e_volume;
         energy->gravity = e_gravity;
@@ -365,9 +402,6 @@ Energy Model::energy(const State& s) const
     Energy e;
     std::vector<double> f;
     forces(s, f, &e);
-    for (std::size_t i = 0; i < mass_.size(); ++i)
-        e.kinetic += 0.5 * mass_[i] *
-                     (s.v[3 * i] * s.v[3 * i] + s.v[3 * i + 1] * s.v[3 * i + 1] + s.v[3 * i + 2] * s.v[3 * i + 2]);
     return e;
 }
 

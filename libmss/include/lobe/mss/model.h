@@ -145,7 +145,7 @@ public:
 
     //! Internal plus external (gravity, mass damping) forces at state s [N], xyz interleaved,
     //! written into f (resized). Fixed nodes get their forces too (the integrator ignores them).
-    //! If energy is not null, fills the potential energies (not the kinetic one).
+    //! If energy is not null, fills it (kinetic and potential energies of s).
     void forces(const State& s, std::vector<double>& f, Energy* energy = nullptr) const;
 
     //! All energies of s.
@@ -168,6 +168,7 @@ private:
     ModelParams params_;
     std::vector<double> rest_, mass_, inv_mass_;
     Springs springs_;
+    std::vector<std::int32_t> spring_first_; // springs of first node a: [first[a], first[a+1])
     std::vector<double> tet_e_, tet_v0_, tet_kv_;
     std::vector<std::int32_t> surface_nodes_;
     std::vector<std::array<std::int32_t, 3>> surface_faces_;
