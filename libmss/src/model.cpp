@@ -4,6 +4,8 @@
 
 #include "lobe/core/errors.h"
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -44,6 +46,24 @@ Stiffness parse_stiffness(const std::string& name)
     throw core::InvalidInputError("unknown stiffness law '" + name + "' (constant, inverse-length, van-gelder, havp)");
 }
 
+const char* formulation_name(Formulation f)
+{
+    switch (f) {
+    case Formulation::MassSpring: return "mass-spring";
+    case Formulation::LinearFem: return "linear-fem";
+    case Formulation::CorotationalFem: return "corotational-fem";
+    }
+    return "?";
+}
+
+Formulation parse_formulation(const std::string& name)
+{
+    for (Formulation f : {Formulation::MassSpring, Formulation::LinearFem, Formulation::CorotationalFem})
+        if (name == formulation_name(f))
+            return f;
+    throw core::InvalidInputError("unknown formulation '" + name + "' (mass-spring, linear-fem, corotational-fem)");
+}
+
 std::vector<TissueMaterial> default_tissues()
 {
     const double e = 11000;
@@ -71,9 +91,10 @@ Model::Model(const core::TetMesh& mesh, const ModelParams& params) : mesh_(mesh)
     if (!(params_.havp_c > 0) || !(params_.volume_coefficient >= 0) || !positive_finite(params_.reference_length_mm) ||
         !(params_.damping_ratio >= 0) || !(params_.mass_damping >= 0) || !std::isfinite(params_.havp_c) ||
         !std::isfinite(params_.volume_coefficient) || !std::isfinite(params_.damping_ratio) ||
-        !std::isfinite(params_.mass_damping))
+        !std::isfinite(params_.mass_damping) || !(params_.poisson_ratio > -1 && params_.poisson_ratio < 0.5))
         throw core::InvalidInputError("mass-spring model: havp_c and reference_length must be positive, "
-                                      "volume_coefficient, damping_ratio and mass_damping non-negative and finite");
+                                      "volume_coefficient, damping_ratio and mass_damping non-negative and finite, "
+                                      "poisson_ratio in (-1, 0.5)");
     for (int c = 0; c < 3; ++c)
         if (!std::isfinite(params_.gravity[c]))
             throw core::InvalidInputError("mass-spring model: gravity is not finite");
@@ -105,7 +126,8 @@ void Model::build()
         tet_v0_[t] = v;
         for (auto i : mesh_.tets[t])
             mass_[i] += it->second.density * v / 4;
-        if (params_.stiffness == Stiffness::Havp && params_.volume_coefficient > 0)
+        if (params_.formulation == Formulation::MassSpring && params_.stiffness == Stiffness::Havp &&
+            params_.volume_coefficient > 0)
             tet_kv_[t] = params_.volume_coefficient * tet_e_[t] * v / (v * v);
     }
     for (std::size_t i = 0; i < n; ++i)
@@ -148,7 +170,7 @@ void Model::build()
             l2 += (rest_[3 * b + c] - rest_[3 * a + c]) * (rest_[3 * b + c] - rest_[3 * a + c]);
         const double l = std::sqrt(l2);
         double k = 0;
-        switch (params_.stiffness) {
+        switch (params_.formulation == Formulation::MassSpring ? params_.stiffness : Stiffness::VanGelder) {
         case Stiffness::Constant: k = sum_e / count * lref; break;
         case Stiffness::InverseLength: k = sum_e / count * lref * lref / l; break;
         case Stiffness::VanGelder: k = sum_ev / l2; break;
@@ -164,6 +186,26 @@ void Model::build()
         r = e;
     }
 
+    // FEM: the inverse rest edge matrices; the springs stay for damping and the time step
+    // estimate (Van Gelder k, the stiffness of the same element to within a factor ~1), with no
+    // elastic force of their own (fem_k_ below).
+    tet_dm_inv_.clear();
+    if (params_.formulation != Formulation::MassSpring) {
+        tet_dm_inv_.resize(9 * nt);
+        for (std::size_t t = 0; t < nt; ++t) {
+            const auto& q = mesh_.tets[t];
+            Eigen::Matrix3d dm;
+            for (int c = 0; c < 3; ++c)
+                for (int r = 0; r < 3; ++r)
+                    dm(r, c) = rest_[3 * q[c + 1] + r] - rest_[3 * q[0] + r];
+            const Eigen::Matrix3d inv = dm.inverse();
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c)
+                    tet_dm_inv_[9 * t + 3 * r + c] = inv(r, c);
+        }
+    }
+
+    fem_k_.assign(params_.formulation == Formulation::MassSpring ? 0 : springs_.size(), 0.0);
     spring_first_.assign(n + 1, 0);
     for (std::size_t k = 0; k < springs_.size(); ++k)
         ++spring_first_[std::size_t(springs_.a[k]) + 1];
@@ -304,7 +346,7 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
     // node's force goes through memory, and no store-to-load chain forms on a.
     const std::int32_t* sb = springs_.b.data();
     const double* l0 = springs_.rest_length.data();
-    const double* ks = springs_.stiffness.data();
+    const double* ks = params_.formulation == Formulation::MassSpring ? springs_.stiffness.data() : fem_k_.data();
     const double* cs = springs_.damping.data();
     const std::int32_t* first = spring_first_.data();
     for (std::size_t na = 0; na < n; ++na) {
@@ -373,6 +415,44 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
             F[i0 + 1] -= m * (g1y + g2y + g3y);
             F[i0 + 2] -= m * (g1z + g2z + g3z);
             e_volume += 0.5 * kv[t] * dv * dv;
+        }
+    }
+
+    if (params_.formulation != Formulation::MassSpring) {
+        const double nu = params_.poisson_ratio;
+        const bool corotational = params_.formulation == Formulation::CorotationalFem;
+        for (std::size_t t = 0; t < mesh_.tets.size(); ++t) {
+            const auto& q = mesh_.tets[t];
+            const double e = tet_e_[t], vol = tet_v0_[t];
+            const double lambda = e * nu / ((1 + nu) * (1 - 2 * nu)), mu = e / (2 * (1 + nu));
+            Eigen::Matrix3d ds, dminv;
+            for (int c = 0; c < 3; ++c)
+                for (int r = 0; r < 3; ++r) {
+                    ds(r, c) = x[3 * q[c + 1] + r] - x[3 * q[0] + r];
+                    dminv(c, r) = tet_dm_inv_[9 * t + 3 * c + r];
+                }
+            const Eigen::Matrix3d grad = ds * dminv; // deformation gradient F
+            Eigen::Matrix3d rot = Eigen::Matrix3d::Identity();
+            if (corotational) {
+                const Eigen::JacobiSVD<Eigen::Matrix3d> svd(grad, Eigen::ComputeFullU | Eigen::ComputeFullV);
+                Eigen::Matrix3d u = svd.matrixU();
+                rot = u * svd.matrixV().transpose();
+                if (rot.determinant() < 0) { // an inverted element: the nearest rotation, not a reflection
+                    u.col(2) *= -1;
+                    rot = u * svd.matrixV().transpose();
+                }
+            }
+            const Eigen::Matrix3d s_mat = rot.transpose() * grad;
+            const Eigen::Matrix3d eps = 0.5 * (s_mat + s_mat.transpose()) - Eigen::Matrix3d::Identity();
+            const double tr = eps.trace();
+            const Eigen::Matrix3d stress = lambda * tr * Eigen::Matrix3d::Identity() + 2 * mu * eps;
+            const Eigen::Matrix3d h = -vol * rot * stress * dminv.transpose();
+            for (int j = 0; j < 3; ++j)
+                for (int r = 0; r < 3; ++r) {
+                    F[3 * q[j + 1] + r] += h(r, j);
+                    F[3 * q[0] + r] -= h(r, j);
+                }
+            e_volume += vol * (mu * eps.squaredNorm() + 0.5 * lambda * tr * tr);
         }
     }
 

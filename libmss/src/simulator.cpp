@@ -97,6 +97,9 @@ struct Simulator::Impl {
             !(params.cg_tolerance > 0) || params.cg_max_iterations < 1)
             throw core::InvalidInputError("simulator: time step factors, tolerance, max_speed, cg settings must be "
                                           "positive, energy_growth above 1, check_interval at least 1");
+        if (params.integrator == Integrator::BackwardEuler && model.params().formulation != Formulation::MassSpring)
+            throw core::InvalidInputError("simulator: backward Euler supports the mass-spring formulation only, not " +
+                                          std::string(formulation_name(model.params().formulation)));
         if (ts.policy == StepPolicy::Fixed && !(ts.dt > 0))
             throw core::InvalidInputError("simulator: the fixed time step policy needs dt > 0");
         state = model.rest_state();

@@ -110,7 +110,11 @@ public:
             auto& m = s.model;
             auto& ts = s.simulator.time_step;
             if (section == "model") {
-                if (key == "stiffness")
+                if (key == "formulation")
+                    m.formulation = named(mss::parse_formulation, value);
+                else if (key == "poisson_ratio")
+                    m.poisson_ratio = number(value, key);
+                else if (key == "stiffness")
                     m.stiffness = named(mss::parse_stiffness, value);
                 else if (key == "havp_c")
                     m.havp_c = positive(value, key);
@@ -126,7 +130,7 @@ public:
                     const auto g = numbers(value, 3, key);
                     m.gravity = {g[0], g[1], g[2]};
                 } else
-                    fail("unknown key '" + key + "' in [model] (stiffness, havp_c, volume_coefficient, reference_length, "
+                    fail("unknown key '" + key + "' in [model] (formulation, poisson_ratio, stiffness, havp_c, volume_coefficient, reference_length, "
                          "damping_ratio, mass_damping, gravity)");
             } else if (section == "tissues") {
                 if (key == "density")

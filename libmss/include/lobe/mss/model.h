@@ -27,6 +27,20 @@ enum class Stiffness {
                    //!< volume forces of stiffness k_V = volume_coefficient * E_t * V0_t per tet
 };
 
+//! What produces the elastic forces. The FEM formulations are the accuracy reference for the
+//! mass-spring laws (docs/algorithms/mass_spring.md, "FEM reference"): linear tetrahedra with
+//! the tissue's E and poisson_ratio, small-strain (Linear) or with the element rotation removed
+//! by a polar decomposition (Corotational). Explicit integrators only.
+enum class Formulation {
+    MassSpring,     //!< springs (and HAVP volume forces) as chosen by Stiffness
+    LinearFem,      //!< f = -K_e (x - X) per tet
+    CorotationalFem //!< f = -R K_e (R^T x - X) per tet, R from the polar decomposition of F
+};
+//! "mass-spring", "linear-fem", "corotational-fem"
+const char* formulation_name(Formulation f);
+//! \throw core::InvalidInputError for another name
+Formulation parse_formulation(const std::string& name);
+
 //! "constant", "inverse-length", "van-gelder", "havp".
 const char* stiffness_name(Stiffness s);
 //! Inverse of stiffness_name. \throw core::InvalidInputError for another name
@@ -55,7 +69,10 @@ inline constexpr double kHavpVolumeCoefficient = 2.0 / 35.0;
 
 //! Parameters of the model. Defaults are the thesis's "modified HAVP" liver.
 struct ModelParams {
+    Formulation formulation = Formulation::MassSpring;
     Stiffness stiffness = Stiffness::Havp;
+    //! Poisson ratio of the FEM formulations (the mass-spring laws imply 1/4).
+    double poisson_ratio = 0.25;
     std::vector<TissueMaterial> tissues = default_tissues(); //!< one entry per tet label used
     //! HAVP spring constant c (k = c E l). Default: the joint fit with volume forces.
     double havp_c = kHavpWithVolume;
@@ -99,7 +116,7 @@ struct Springs {
 struct Energy {
     double kinetic = 0;
     double springs = 0;
-    double volume = 0;
+    double volume = 0;  //!< HAVP volume terms, or the FEM strain energy
     double gravity = 0; //!< potential relative to the rest positions: -sum m g.(x - X)
     double total() const { return kinetic + springs + volume + gravity; }
 };
@@ -170,6 +187,8 @@ private:
     Springs springs_;
     std::vector<std::int32_t> spring_first_; // springs of first node a: [first[a], first[a+1])
     std::vector<double> tet_e_, tet_v0_, tet_kv_;
+    std::vector<double> fem_k_;      // FEM: zero spring stiffness (the springs only damp)
+    std::vector<double> tet_dm_inv_; // FEM: 9 per tet, the inverse rest edge matrix, row-major
     std::vector<std::int32_t> surface_nodes_;
     std::vector<std::array<std::int32_t, 3>> surface_faces_;
     std::vector<std::int32_t> surface_face_tets_;
