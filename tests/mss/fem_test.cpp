@@ -160,10 +160,12 @@ TEST(MssFem, StaticCompressionAgainstTheAnalyticSolutionAndFem)
         mp.stiffness = st;
         const double f = compression_force(mp);
         std::printf("  %-15s %.5f N (%+.0f %% vs FEM)\n", mss::stiffness_name(st), f, (f / linear - 1) * 100);
-        if (st == mss::Stiffness::Havp)
+        if (st == mss::Stiffness::Havp) {
             EXPECT_NEAR(f, linear, 0.20 * linear);
-        if (st == mss::Stiffness::VanGelder)
+        }
+        if (st == mss::Stiffness::VanGelder) {
             EXPECT_NEAR(f, linear, 0.25 * linear);
+        }
     }
 }
 
