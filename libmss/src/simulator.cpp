@@ -337,16 +337,20 @@ struct Simulator::Impl {
         return {};
     }
 
-    StepInfo step(double h_limit)
+    // One step of at most h_limit; `landing` = the step is meant to end at a requested time.
+    StepInfo step(double h_limit, bool landing)
     {
         const bool adaptive = params.time_step.policy == StepPolicy::Adaptive;
         for (;;) {
             double h = std::min(dt, h_limit);
             StepInfo info;
             info.at_floor = adaptive && dt <= dt_floor;
+            // A step that lands on a requested time (an output frame) is checked in full and
+            // becomes the last good state, so what is written out never has to be taken back.
             const double err = integrate(h, info);
             ++steps_since_check;
-            const std::string why = blow_up(steps_since_check >= params.check_interval);
+            const bool full_check = (landing && h == h_limit) || steps_since_check >= params.check_interval;
+            const std::string why = blow_up(full_check);
             if (!why.empty()) {
                 const double t_bad = state.time;
                 rollback();
@@ -363,7 +367,7 @@ struct Simulator::Impl {
                                         sci(model.gershgorin_time_step()) + " s): " + why +
                                         "; the state is the last good one, at t = " + sci(state.time) + " s");
             }
-            if (steps_since_check >= params.check_interval)
+            if (full_check)
                 checkpoint();
             ++stats.steps;
             stats.min_dt = stats.steps == 1 ? h : std::min(stats.min_dt, h);
@@ -415,7 +419,7 @@ std::size_t Simulator::add_probe(const ProbeParams& probe)
     return impl_->probes.size() - 1;
 }
 
-StepInfo Simulator::step() { return impl_->step(std::numeric_limits<double>::infinity()); }
+StepInfo Simulator::step() { return impl_->step(std::numeric_limits<double>::infinity(), false); }
 
 StepInfo Simulator::step_until(double t_end)
 {
@@ -426,7 +430,7 @@ StepInfo Simulator::step_until(double t_end)
     // Avoid a sliver of a step just before t_end: split what is left in two instead.
     const double dt = impl_->dt;
     const double h = left <= dt ? left : (left < 1.5 * dt ? 0.5 * left : dt);
-    StepInfo info = impl_->step(h);
+    StepInfo info = impl_->step(h, left <= dt);
     if (left <= dt && info.dt == left)
         impl_->state.time = t_end; // exactly, despite rounding
     return info;

@@ -138,7 +138,8 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
         {"springs", double(model.springs().size())},
         {"tets", double(model.tet_count())},
         {"frames", double(frames)},
-        {"steps", double(st.steps)},
+        {"steps", double(all_steps.size())},           // kept in steps/ (up to the last good state)
+        {"steps_integrated", double(st.steps)},        // including any undone by a blow-up
         {"simulated_time_s", sim->state().time},
         {"critical_dt_s", model.critical_time_step()},
         {"gershgorin_dt_s", model.gershgorin_time_step()},
@@ -162,7 +163,7 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
     prov.parameters.emplace_back("result.steps", std::to_string(st.steps));
     out.write_provenance(prov);
     out.commit();
-    progress.message("wrote " + o.out.string() + ": " + std::to_string(frames) + " frames, " + std::to_string(st.steps) +
+    progress.message("wrote " + o.out.string() + ": " + std::to_string(frames) + " frames, " + std::to_string(all_steps.size()) +
                      " steps in " + num(sim_seconds) + " s (" + num(st.steps > 0 ? 1e6 * sim_seconds / double(st.steps) : 0) +
                      " us per step), dt " + num(st.min_dt * 1e3) + ".." + num(st.max_dt * 1e3) + " ms" +
                      (st.floor_hits ? ", " + std::to_string(st.floor_hits) + " steps at the dt floor" : "") +

@@ -121,7 +121,9 @@ public:
     //! One step. \throw core::SolverError on a blow-up the policy cannot undo; state() is then
     //! the last good state (checked at most check_interval steps before).
     StepInfo step();
-    //! One step, shortened if needed so that it ends at t_end.
+    //! One step, shortened if needed so that it ends at t_end. A step that ends at t_end gets
+    //! every blow-up check and becomes the last good state (so frames written at such times are
+    //! never undone).
     StepInfo step_until(double t_end);
 
     //! Steps until time t_end, the last step shortened to land on it; calls on_step after each.
