@@ -19,3 +19,9 @@ endif()
 find_package(CGAL 5.5 REQUIRED COMPONENTS ImageIO)
 find_package(TBB REQUIRED)
 include(CGAL_TBB_support)
+# SuiteSparse 5.12 (Debian 12) ships no CMake config: CHOLMOD and the libraries it needs by name.
+# Linked by absolute path, so the exported static lobe::mss needs no find module downstream.
+find_path(CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse REQUIRED)
+find_library(CHOLMOD_LIBRARY cholmod REQUIRED)
+find_library(SUITESPARSE_CONFIG_LIBRARY suitesparseconfig REQUIRED)
+set(CHOLMOD_LIBRARIES ${CHOLMOD_LIBRARY} ${SUITESPARSE_CONFIG_LIBRARY})

@@ -19,6 +19,7 @@
 #include <ctime>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <optional>
 #include <set>
 #include <type_traits>
@@ -763,6 +764,53 @@ std::vector<std::array<std::int32_t, K>> read_cells(hid_t group, const std::stri
     return cells;
 }
 
+// ---- extendible datasets (/simulation) ---------------------------------------------------------
+
+// An empty dataset whose first dimension grows with each append.
+template <class T>
+Dataset create_extendible(hid_t loc, const std::string& name, std::vector<hsize_t> dims, const std::vector<hsize_t>& chunk,
+                          const Hdf5WriteParams& params, const std::string& what)
+{
+    std::vector<hsize_t> maxdims = dims;
+    dims[0] = 0;
+    maxdims[0] = H5S_UNLIMITED;
+    const int rank = static_cast<int>(dims.size());
+    Space space(ok_id(H5Screate_simple(rank, dims.data(), maxdims.data()), what));
+    Plist dcpl(ok_id(H5Pcreate(H5P_DATASET_CREATE), what));
+    ok(H5Pset_obj_track_times(dcpl.get(), false), what);
+    ok(H5Pset_chunk(dcpl.get(), rank, chunk.data()), what + ": chunking");
+    if (params.gzip_level > 0) {
+        ok(H5Pset_shuffle(dcpl.get()), what + ": shuffle filter");
+        ok(H5Pset_deflate(dcpl.get(), static_cast<unsigned>(params.gzip_level)), what + ": deflate filter");
+    }
+    if (params.checksum)
+        ok(H5Pset_fletcher32(dcpl.get()), what + ": checksum filter");
+    return Dataset(ok_id(H5Dcreate2(loc, name.c_str(), file_type<T>(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                         what + ": cannot create dataset"));
+}
+
+// Appends `rows` rows (each of the dataset's trailing shape) to an extendible dataset.
+template <class T>
+void append_rows(hid_t loc, const std::string& name, const T* data, hsize_t rows, const std::string& what)
+{
+    if (rows == 0)
+        return;
+    Dataset ds(ok_id(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), what + ": cannot open"));
+    Space old(ok_id(H5Dget_space(ds.get()), what));
+    const int rank = H5Sget_simple_extent_ndims(old.get());
+    std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
+    H5Sget_simple_extent_dims(old.get(), dims.data(), nullptr);
+    std::vector<hsize_t> start(dims.size(), 0), count = dims;
+    start[0] = dims[0];
+    count[0] = rows;
+    dims[0] += rows;
+    ok(H5Dset_extent(ds.get(), dims.data()), what + ": cannot extend");
+    Space file(ok_id(H5Dget_space(ds.get()), what));
+    ok(H5Sselect_hyperslab(file.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr), what);
+    Space mem(ok_id(H5Screate_simple(rank, count.data(), nullptr), what));
+    ok(H5Dwrite(ds.get(), native_type<T>(), mem.get(), file.get(), H5P_DEFAULT, data), what + ": cannot write data");
+}
+
 } // namespace
 
 // ---- free helpers ------------------------------------------------------------------------------
@@ -810,6 +858,12 @@ struct Hdf5Writer::Impl {
     detail::XdmfContents xdmf;
     std::set<std::string> names[4]; // images, labels, surfaces, meshes
     int next_record = 0;
+    struct Simulation {
+        std::size_t nodes = 0;
+        std::size_t xdmf = 0; // index into xdmf.simulations
+        double last_time = -std::numeric_limits<double>::infinity();
+    };
+    std::map<std::string, Simulation> simulations;
     bool closed = false;
     bool failed = false;
 
@@ -1101,6 +1155,108 @@ void Hdf5Writer::commit()
         sidecar->commit();
 }
 
+void Hdf5Writer::begin_simulation(const std::string& name, const std::string& mesh)
+{
+    Impl& m = impl();
+    m.require_open();
+    if (!valid_item_name(name))
+        throw InvalidInputError(m.file + ": invalid simulation name '" + name + "'");
+    if (m.simulations.count(name))
+        throw InvalidInputError(m.file + ": simulation '" + name + "' was already written");
+    const auto it = std::find_if(m.xdmf.meshes.begin(), m.xdmf.meshes.end(), [&](const detail::XdmfTetMesh& x) { return x.name == mesh; });
+    if (it == m.xdmf.meshes.end())
+        throw InvalidInputError(m.file + ": simulation '" + name + "' refers to tet mesh '" + mesh +
+                                "', which this writer has not written");
+    const std::string where = m.what("/simulation/" + name);
+    const std::size_t n = it->vertices;
+    m.guarded([&] {
+        Group sims = m.group("simulation");
+        Group g = create_group(sims.get(), name, where);
+        write_string_attr(g.get(), "mesh", "/meshes/" + mesh, where);
+        write_string_attr(g.get(), "status", "running", where);
+        create_extendible<double>(g.get(), "times", {0}, {1024}, m.params, where + "/times");
+        // One frame per chunk (fewer rows for very large meshes), so appending touches one chunk.
+        const hsize_t rows = std::max<hsize_t>(1, std::min<hsize_t>(n, kChunkBytes / 24));
+        Dataset pos = create_extendible<double>(g.get(), "positions", {0, std::max<hsize_t>(n, 1), 3}, {1, rows, 3}, m.params,
+                                                where + "/positions");
+        write_string_attr(pos.get(), "units", "mm", where + "/positions");
+        Group steps = create_group(g.get(), "steps", where + "/steps");
+        for (const char* d : {"time", "dt", "energy"})
+            create_extendible<double>(steps.get(), d, {0}, {4096}, m.params, where + "/steps/" + d);
+        create_extendible<double>(steps.get(), "force", {0, 3}, {4096, 3}, m.params, where + "/steps/force");
+    });
+    m.simulations[name] = {n, m.xdmf.simulations.size(), -std::numeric_limits<double>::infinity()};
+    m.xdmf.simulations.push_back({name, *it, {}});
+}
+
+void Hdf5Writer::append_frame(const std::string& name, double time, const std::vector<core::Vec3>& positions)
+{
+    Impl& m = impl();
+    m.require_open();
+    const auto it = m.simulations.find(name);
+    if (it == m.simulations.end())
+        throw InvalidInputError(m.file + ": append_frame to simulation '" + name + "', which was not begun");
+    const std::string where = m.what("/simulation/" + name);
+    if (positions.size() != it->second.nodes)
+        throw InvalidInputError(where + ": frame has " + std::to_string(positions.size()) + " positions for " +
+                                std::to_string(it->second.nodes) + " mesh vertices");
+    if (!std::isfinite(time) || !(time > it->second.last_time))
+        throw InvalidInputError(where + ": frame time " + std::to_string(time) + " is not finite or not after the previous frame");
+    check_finite(positions, where + "/positions");
+    m.guarded([&] {
+        Group g(ok_id(H5Gopen2(m.h.get(), ("simulation/" + name).c_str(), H5P_DEFAULT), where));
+        append_rows(g.get(), "positions", reinterpret_cast<const double*>(positions.data()), 1, where + "/positions");
+        append_rows(g.get(), "times", &time, 1, where + "/times");
+    });
+    it->second.last_time = time;
+    m.xdmf.simulations[it->second.xdmf].times.push_back(time);
+}
+
+void Hdf5Writer::append_steps(const std::string& name, const std::vector<SimulationStep>& steps)
+{
+    Impl& m = impl();
+    m.require_open();
+    if (!m.simulations.count(name))
+        throw InvalidInputError(m.file + ": append_steps to simulation '" + name + "', which was not begun");
+    const std::string where = m.what("/simulation/" + name + "/steps");
+    std::vector<double> t, dt, e, f;
+    for (const auto& st : steps) {
+        t.push_back(st.time);
+        dt.push_back(st.dt);
+        e.push_back(st.energy);
+        f.insert(f.end(), {st.force.x, st.force.y, st.force.z});
+    }
+    m.guarded([&] {
+        Group g(ok_id(H5Gopen2(m.h.get(), ("simulation/" + name + "/steps").c_str(), H5P_DEFAULT), where));
+        append_rows(g.get(), "time", t.data(), t.size(), where + "/time");
+        append_rows(g.get(), "dt", dt.data(), dt.size(), where + "/dt");
+        append_rows(g.get(), "energy", e.data(), e.size(), where + "/energy");
+        append_rows(g.get(), "force", f.data(), t.size(), where + "/force");
+    });
+}
+
+void Hdf5Writer::finish_simulation(const std::string& name, const std::vector<std::pair<std::string, double>>& statistics,
+                                   const std::string& status)
+{
+    Impl& m = impl();
+    m.require_open();
+    if (!m.simulations.count(name))
+        throw InvalidInputError(m.file + ": finish_simulation of '" + name + "', which was not begun");
+    const std::string where = m.what("/simulation/" + name);
+    std::set<std::string> keys;
+    for (const auto& [key, value] : statistics)
+        if (key.empty() || key.size() > kMaxNameLength || !keys.insert(key).second)
+            throw InvalidInputError(where + ": invalid or repeated statistic '" + key + "'");
+    m.guarded([&] {
+        Group g(ok_id(H5Gopen2(m.h.get(), ("simulation/" + name).c_str(), H5P_DEFAULT), where));
+        ok(H5Adelete(g.get(), "status"), where + ": status");
+        write_string_attr(g.get(), "status", status, where);
+        Group st = create_group(g.get(), "statistics", where + "/statistics");
+        for (const auto& [key, value] : statistics)
+            write_scalar_attr(st.get(), key, value, where + "/statistics");
+    });
+}
+
 // ---- Hdf5Reader --------------------------------------------------------------------------------
 
 struct Hdf5Reader::Impl {
@@ -1194,6 +1350,7 @@ std::vector<std::string> Hdf5Reader::images() const { return impl().list("images
 std::vector<std::string> Hdf5Reader::labels() const { return impl().list("labels"); }
 std::vector<std::string> Hdf5Reader::surfaces() const { return impl().list("surfaces"); }
 std::vector<std::string> Hdf5Reader::tet_meshes() const { return impl().list("meshes"); }
+std::vector<std::string> Hdf5Reader::simulations() const { return impl().list("simulation"); }
 
 ImageInfo Hdf5Reader::image_info(const std::string& name) const
 {
@@ -1264,6 +1421,93 @@ core::TriMesh Hdf5Reader::read_surface(const std::string& name) const
     if (const std::string problem = core::mesh_problem(mesh); !problem.empty())
         throw InvalidInputError(where + "/triangles: " + problem);
     return mesh;
+}
+
+namespace {
+
+// Reads a rank-1 float64 dataset of at most max_rows values.
+std::vector<double> read_doubles(hid_t g, const std::string& name, const std::string& where, std::size_t max_rows)
+{
+    DatasetView v = open_dataset(g, name, where + "/" + name);
+    const std::size_t n = check_shape(v, 1, 0, max_rows);
+    check_class(v, H5T_FLOAT, "float64");
+    std::vector<double> out(n);
+    read_all(v, out.data(), n);
+    return out;
+}
+
+// The longest simulation the reader accepts, in frames and steps.
+constexpr std::size_t kMaxSimulationRows = std::size_t(1) << 28;
+
+} // namespace
+
+SimulationInfo Hdf5Reader::read_simulation(const std::string& name) const
+{
+    Group parent = impl().item_group("simulation", name, "simulation");
+    const std::string where = impl().at("/simulation/" + name);
+    Group g = open_group(parent.get(), name, where);
+    SimulationInfo out;
+    out.mesh = read_string_attr(g.get(), "mesh", where);
+    if (out.mesh.rfind("/meshes/", 0) == 0)
+        out.mesh = out.mesh.substr(8);
+    out.status = has_attr(g.get(), "status") ? read_string_attr(g.get(), "status", where) : std::string();
+    out.times = read_doubles(g.get(), "times", where, kMaxSimulationRows);
+    {
+        DatasetView v = open_dataset(g.get(), "positions", where + "/positions");
+        check_shape(v, 3, 3, kMaxSimulationRows);
+        check_class(v, H5T_FLOAT, "float64");
+        if (v.dims[0] != out.times.size())
+            throw InvalidInputError(v.where + " has " + std::to_string(v.dims[0]) + " frames but times has " +
+                                    std::to_string(out.times.size()));
+        if (v.dims[1] > kMaxMeshElements)
+            throw InvalidInputError(v.where + " has too many nodes");
+        out.nodes = static_cast<std::size_t>(v.dims[1]);
+    }
+    const std::string sw = where + "/steps";
+    Group steps = open_group(g.get(), "steps", sw);
+    const auto t = read_doubles(steps.get(), "time", sw, kMaxSimulationRows);
+    const auto dt = read_doubles(steps.get(), "dt", sw, kMaxSimulationRows);
+    const auto e = read_doubles(steps.get(), "energy", sw, kMaxSimulationRows);
+    DatasetView fv = open_dataset(steps.get(), "force", sw + "/force");
+    const std::size_t nf = check_shape(fv, 2, 3, kMaxSimulationRows);
+    check_class(fv, H5T_FLOAT, "float64");
+    if (dt.size() != t.size() || e.size() != t.size() || nf != t.size())
+        throw InvalidInputError(sw + ": time, dt, energy and force differ in length");
+    std::vector<double> f(3 * nf);
+    read_all(fv, f.data(), f.size());
+    for (std::size_t i = 0; i < t.size(); ++i)
+        out.steps.push_back({t[i], dt[i], {f[3 * i], f[3 * i + 1], f[3 * i + 2]}, e[i]});
+    if (has_link(g.get(), "statistics")) {
+        Group st = open_group(g.get(), "statistics", where + "/statistics");
+        for (const auto& key : attribute_names(st.get(), where + "/statistics")) {
+            const auto v = read_numbers_attr(st.get(), key, 1, where + "/statistics");
+            out.statistics.emplace_back(key, v[0]);
+        }
+    }
+    return out;
+}
+
+std::vector<core::Vec3> Hdf5Reader::read_frame(const std::string& name, std::size_t index) const
+{
+    Group parent = impl().item_group("simulation", name, "simulation");
+    const std::string where = impl().at("/simulation/" + name);
+    Group g = open_group(parent.get(), name, where);
+    DatasetView v = open_dataset(g.get(), "positions", where + "/positions");
+    check_shape(v, 3, 3, kMaxSimulationRows);
+    check_class(v, H5T_FLOAT, "float64");
+    if (index >= v.dims[0])
+        throw InvalidInputError(v.where + ": no frame " + std::to_string(index) + " (it has " + std::to_string(v.dims[0]) + ")");
+    if (v.dims[1] > kMaxMeshElements)
+        throw InvalidInputError(v.where + " has too many nodes");
+    std::vector<core::Vec3> out(static_cast<std::size_t>(v.dims[1]));
+    const hsize_t start[3] = {index, 0, 0}, count[3] = {1, v.dims[1], 3};
+    Space file(ok_id(H5Dget_space(v.ds.get()), v.where));
+    ok(H5Sselect_hyperslab(file.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), v.where);
+    Space mem(ok_id(H5Screate_simple(3, count, nullptr), v.where));
+    if (!out.empty())
+        ok(H5Dread(v.ds.get(), H5T_NATIVE_DOUBLE, mem.get(), file.get(), H5P_DEFAULT, out.data()), v.where + ": cannot read frame");
+    check_finite(out, v.where);
+    return out;
 }
 
 TetMeshData Hdf5Reader::read_tet_mesh(const std::string& name) const

@@ -137,6 +137,35 @@ public:
         line(indent, "</Grid>");
     }
 
+    // A temporal collection: one grid per frame, the mesh's topology with the frame's hyperslab
+    // of the positions as geometry, so ParaView plays the run.
+    void simulation(int indent, const XdmfSimulation& sim)
+    {
+        const std::string base = "/meshes/" + sim.mesh.name;
+        const std::string cells = std::to_string(sim.mesh.tets), n = std::to_string(sim.mesh.vertices);
+        const std::string frames = std::to_string(sim.times.size());
+        line(indent, "<Grid Name=\"" + xml_escape(sim.name) + "\" GridType=\"Collection\" CollectionType=\"Temporal\">");
+        for (std::size_t f = 0; f < sim.times.size(); ++f) {
+            line(indent + 1, "<Grid Name=\"" + xml_escape(sim.name) + "_" + std::to_string(f) + "\" GridType=\"Uniform\">");
+            line(indent + 2, "<Time Value=\"" + exact(sim.times[f]) + "\"/>");
+            line(indent + 2, "<Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"" + cells + "\">");
+            hdf_item(indent + 3, cells + " 4", {"Int", 4}, base + "/tets");
+            line(indent + 2, "</Topology>");
+            line(indent + 2, "<Geometry GeometryType=\"XYZ\">");
+            line(indent + 3, "<DataItem ItemType=\"HyperSlab\" Dimensions=\"1 " + n + " 3\" Type=\"HyperSlab\">");
+            line(indent + 4, "<DataItem Dimensions=\"3 3\" Format=\"XML\">" + std::to_string(f) + " 0 0 1 1 1 1 " + n +
+                                 " 3</DataItem>");
+            hdf_item(indent + 4, frames + " " + n + " 3", {"Float", 8}, "/simulation/" + sim.name + "/positions");
+            line(indent + 3, "</DataItem>");
+            line(indent + 2, "</Geometry>");
+            line(indent + 2, "<Attribute Name=\"tet_labels\" AttributeType=\"Scalar\" Center=\"Cell\">");
+            hdf_item(indent + 3, cells, {"Int", 4}, base + "/tet_labels");
+            line(indent + 2, "</Attribute>");
+            line(indent + 1, "</Grid>");
+        }
+        line(indent, "</Grid>");
+    }
+
     // One spatial collection per kind, so that equal names of different kinds (labels/liver,
     // surfaces/liver, meshes/liver) stay distinct blocks in ParaView.
     template <class Items, class Emit>
@@ -178,6 +207,13 @@ std::string xdmf_document(const XdmfContents& contents, const std::string& h5_fi
             meshes.push_back(m);
     doc.collection("surfaces", surfaces, [&](const XdmfSurface& s) { doc.surface(3, s); });
     doc.collection("meshes", meshes, [&](const XdmfTetMesh& m) { doc.tet_mesh(3, m); });
+    std::vector<XdmfSimulation> simulations;
+    for (const auto& s : contents.simulations)
+        if (!s.times.empty() && s.mesh.vertices > 0 && s.mesh.tets > 0)
+            simulations.push_back(s);
+    // Temporal collections sit directly in the Domain, where every ParaView reader looks for time.
+    for (const auto& s : simulations)
+        doc.simulation(2, s);
     doc.line(1, "</Domain>");
     doc.line(0, "</Xdmf>");
     return doc.str();

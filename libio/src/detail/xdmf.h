@@ -29,11 +29,18 @@ struct XdmfTetMesh {
     std::vector<std::string> quality;
 };
 
+struct XdmfSimulation {
+    std::string name;          // /simulation/<name>/positions (frames, vertices, 3)
+    XdmfTetMesh mesh;          // its topology: /meshes/<mesh.name>/tets and tet_labels
+    std::vector<double> times; // one per frame
+};
+
 struct XdmfContents {
     std::vector<XdmfVolume> images;
     std::vector<XdmfVolume> labels;
     std::vector<XdmfSurface> surfaces;
     std::vector<XdmfTetMesh> meshes;
+    std::vector<XdmfSimulation> simulations;
 };
 
 // The XDMF 3 document describing `contents`, whose heavy data lives in `h5_file_name`

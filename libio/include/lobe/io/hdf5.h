@@ -12,6 +12,8 @@
 //!     /surfaces/NAME/       vertices (n,3) float64, triangles (m,3) int32
 //!     /meshes/NAME/         vertices (n,3) float64, tets (m,4) int32, tet_labels (m) int32,
 //!                           quality/MEASURE (m) float64
+//!     /simulation/NAME/     attr mesh; times (F), positions (F,n,3) [mm]; steps/{time,dt,force,energy};
+//!                           statistics/ (float64 attributes), attr status
 //! Geometry attributes are in ITK's (x, y, z) order although the dataset dimensions are (z, y, x).
 //!
 //! Errors: core::IoError when a file cannot be opened, read or written or is not HDF5 at all;
@@ -77,6 +79,24 @@ struct Provenance {
     std::vector<std::pair<std::string, double>> timings;         //!< (step, seconds), run order; unique steps
 };
 
+//! One integration step of a simulation, as /simulation/<name>/steps stores it.
+struct SimulationStep {
+    double time = 0;           //!< time at the end of the step [s]
+    double dt = 0;             //!< [s]
+    core::Vec3 force{0, 0, 0}; //!< force of the tissue on the instruments [N]
+    double energy = 0;         //!< total energy [J]
+};
+
+//! A simulation read back (frames are read one at a time with Hdf5Reader::read_frame).
+struct SimulationInfo {
+    std::string mesh;                 //!< name of the tet mesh (in /meshes) whose topology the frames use
+    std::size_t nodes = 0;            //!< vertices per frame
+    std::vector<double> times;        //!< time of each frame [s]
+    std::vector<SimulationStep> steps;
+    std::vector<std::pair<std::string, double>> statistics; //!< in the order written
+    std::string status;               //!< "completed" or why the run stopped
+};
+
 //! Header of an image without its pixels.
 struct ImageInfo {
     core::PixelType pixel_type = core::PixelType::UInt8;
@@ -137,6 +157,23 @@ public:
     void write_tet_mesh(const std::string& name, const core::TetMesh& mesh,
                         const std::vector<ElementArray>& quality = {}, const LabelTable& tissues = {});
 
+    //! Starts /simulation/<name> on the tet mesh /meshes/<mesh>, which this writer must have
+    //! written. Frames and steps are appended as the run goes; the file stays a valid container.
+    //! \throw core::InvalidInputError for a bad or duplicate name or an unknown mesh
+    void begin_simulation(const std::string& name, const std::string& mesh);
+
+    //! Appends one output frame: node positions [mm] (one per mesh vertex, finite) at `time` [s]
+    //! (after the previous frame's). \throw core::InvalidInputError otherwise
+    void append_frame(const std::string& name, double time, const std::vector<core::Vec3>& positions_mm);
+
+    //! Appends integration steps (any number, e.g. those since the last frame).
+    void append_steps(const std::string& name, const std::vector<SimulationStep>& steps);
+
+    //! Writes the run statistics (float64 attributes of statistics/) and the status attribute
+    //! ("completed", or why the run stopped: the frames kept are the last good ones).
+    void finish_simulation(const std::string& name, const std::vector<std::pair<std::string, double>>& statistics,
+                           const std::string& status = "completed");
+
     //! Appends a provenance record as /provenance/NNN_<tool>, NNN counting from 000 in call order.
     void write_provenance(const Provenance& record);
 
@@ -177,6 +214,7 @@ public:
     std::vector<std::string> labels() const;
     std::vector<std::string> surfaces() const;
     std::vector<std::string> tet_meshes() const;
+    std::vector<std::string> simulations() const;
 
     //! Pixel type and geometry of /images/<name>, without reading the pixels.
     ImageInfo image_info(const std::string& name) const;
@@ -187,6 +225,10 @@ public:
     LabelVolume read_labels(const std::string& name) const;
     core::TriMesh read_surface(const std::string& name) const;
     TetMeshData read_tet_mesh(const std::string& name) const;
+    //! Everything of /simulation/<name> but the frames.
+    SimulationInfo read_simulation(const std::string& name) const;
+    //! Node positions [mm] of frame `index` (0-based) of /simulation/<name>.
+    std::vector<core::Vec3> read_frame(const std::string& name, std::size_t index) const;
 
     //! Every provenance record, oldest first.
     std::vector<Provenance> provenance() const;

@@ -1,0 +1,488 @@
+// The mass-spring model: masses, springs, volume terms, forces and energies
+// (docs/algorithms/mass_spring.md).
+#include "lobe/mss/model.h"
+
+#include "lobe/core/errors.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <tuple>
+
+namespace lobe::mss {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kMmToM = 1e-3;
+
+bool positive_finite(double v) { return std::isfinite(v) && v > 0; }
+
+// Outward faces of a positively oriented tet (a, b, c, d): d lies on the side of face (a, b, c)
+// its normal (b - a) x (c - a) points to, so that face is listed reversed.
+constexpr int kTetFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+constexpr int kTetEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+
+} // namespace
+
+const char* stiffness_name(Stiffness s)
+{
+    switch (s) {
+    case Stiffness::Constant: return "constant";
+    case Stiffness::InverseLength: return "inverse-length";
+    case Stiffness::VanGelder: return "van-gelder";
+    case Stiffness::Havp: return "havp";
+    }
+    return "?";
+}
+
+Stiffness parse_stiffness(const std::string& name)
+{
+    for (Stiffness s : {Stiffness::Constant, Stiffness::InverseLength, Stiffness::VanGelder, Stiffness::Havp})
+        if (name == stiffness_name(s))
+            return s;
+    throw core::InvalidInputError("unknown stiffness law '" + name + "' (constant, inverse-length, van-gelder, havp)");
+}
+
+const char* formulation_name(Formulation f)
+{
+    switch (f) {
+    case Formulation::MassSpring: return "mass-spring";
+    case Formulation::LinearFem: return "linear-fem";
+    case Formulation::CorotationalFem: return "corotational-fem";
+    }
+    return "?";
+}
+
+Formulation parse_formulation(const std::string& name)
+{
+    for (Formulation f : {Formulation::MassSpring, Formulation::LinearFem, Formulation::CorotationalFem})
+        if (name == formulation_name(f))
+            return f;
+    throw core::InvalidInputError("unknown formulation '" + name + "' (mass-spring, linear-fem, corotational-fem)");
+}
+
+std::vector<TissueMaterial> default_tissues()
+{
+    const double e = 11000;
+    return {{1, e, 1060}, {2, 5 * e, 1060}, {3, 5 * e, 1060}, {4, 10 * e, 1060}};
+}
+
+std::vector<core::Vec3> State::positions_mm() const
+{
+    std::vector<core::Vec3> p(node_count());
+    for (std::size_t i = 0; i < p.size(); ++i)
+        p[i] = position_mm(i);
+    return p;
+}
+
+Model::Model(const core::TetMesh& mesh, const ModelParams& params) : mesh_(mesh), params_(params)
+{
+    if (const std::string problem = core::mesh_problem(mesh_); !problem.empty())
+        throw core::InvalidInputError("mass-spring model: the tet mesh " + problem);
+    if (mesh_.tets.empty())
+        throw core::InvalidInputError("mass-spring model: the tet mesh has no tets");
+    for (const auto& t : params_.tissues)
+        if (!positive_finite(t.youngs_modulus) || !positive_finite(t.density))
+            throw core::InvalidInputError("mass-spring model: tissue " + std::to_string(t.label) +
+                                          " needs a positive Young's modulus and density");
+    if (!(params_.havp_c > 0) || !(params_.volume_coefficient >= 0) || !positive_finite(params_.reference_length_mm) ||
+        !(params_.damping_ratio >= 0) || !(params_.mass_damping >= 0) || !std::isfinite(params_.havp_c) ||
+        !std::isfinite(params_.volume_coefficient) || !std::isfinite(params_.damping_ratio) ||
+        !std::isfinite(params_.mass_damping) || !(params_.poisson_ratio > -1 && params_.poisson_ratio < 0.5))
+        throw core::InvalidInputError("mass-spring model: havp_c and reference_length must be positive, "
+                                      "volume_coefficient, damping_ratio and mass_damping non-negative and finite, "
+                                      "poisson_ratio in (-1, 0.5)");
+    for (int c = 0; c < 3; ++c)
+        if (!std::isfinite(params_.gravity[c]))
+            throw core::InvalidInputError("mass-spring model: gravity is not finite");
+    build();
+}
+
+void Model::build()
+{
+    const std::size_t n = mesh_.vertices.size(), nt = mesh_.tets.size();
+    rest_.resize(3 * n);
+    for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c)
+            rest_[3 * i + c] = mesh_.vertices[i][c] * kMmToM;
+
+    std::map<std::int32_t, TissueMaterial> materials;
+    for (const auto& t : params_.tissues)
+        materials[t.label] = t;
+    tet_e_.assign(nt, 0);
+    tet_v0_.assign(nt, 0);
+    tet_kv_.assign(nt, 0);
+    mass_.assign(n, 0);
+    for (std::size_t t = 0; t < nt; ++t) {
+        const auto it = materials.find(mesh_.tet_labels[t]);
+        if (it == materials.end())
+            throw core::InvalidInputError("mass-spring model: tet " + std::to_string(t) + " has tissue label " +
+                                          std::to_string(mesh_.tet_labels[t]) + ", which has no material");
+        const double v = core::signed_volume(mesh_, t) * kMmToM * kMmToM * kMmToM;
+        tet_e_[t] = it->second.youngs_modulus;
+        tet_v0_[t] = v;
+        for (auto i : mesh_.tets[t])
+            mass_[i] += it->second.density * v / 4;
+        if (params_.formulation == Formulation::MassSpring && params_.stiffness == Stiffness::Havp &&
+            params_.volume_coefficient > 0)
+            tet_kv_[t] = params_.volume_coefficient * tet_e_[t] * v / (v * v);
+    }
+    for (std::size_t i = 0; i < n; ++i)
+        if (mass_[i] <= 0)
+            throw core::InvalidInputError("mass-spring model: vertex " + std::to_string(i) + " belongs to no tet");
+    inv_mass_.resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+        inv_mass_[i] = 1 / mass_[i];
+
+    // Edges with the tets around them: sorting (a, b) pairs gives the springs in node order.
+    struct EdgeRef {
+        std::int32_t a, b;
+        std::int32_t tet;
+    };
+    std::vector<EdgeRef> refs;
+    refs.reserve(6 * nt);
+    for (std::size_t t = 0; t < nt; ++t) {
+        const auto& q = mesh_.tets[t];
+        for (const auto& e : kTetEdges) {
+            const auto a = q[e[0]], b = q[e[1]];
+            refs.push_back({std::min(a, b), std::max(a, b), static_cast<std::int32_t>(t)});
+        }
+    }
+    std::sort(refs.begin(), refs.end(), [](const EdgeRef& x, const EdgeRef& y) { return std::tie(x.a, x.b) < std::tie(y.a, y.b); });
+    springs_ = {};
+    min_edge_ = std::numeric_limits<double>::infinity();
+    const double lref = params_.reference_length_mm * kMmToM;
+    for (std::size_t r = 0; r < refs.size();) {
+        std::size_t e = r;
+        double sum_e = 0, sum_ev = 0;
+        int count = 0;
+        for (; e < refs.size() && refs[e].a == refs[r].a && refs[e].b == refs[r].b; ++e) {
+            sum_e += tet_e_[refs[e].tet];
+            sum_ev += tet_e_[refs[e].tet] * tet_v0_[refs[e].tet];
+            ++count;
+        }
+        const auto a = refs[r].a, b = refs[r].b;
+        double l2 = 0;
+        for (int c = 0; c < 3; ++c)
+            l2 += (rest_[3 * b + c] - rest_[3 * a + c]) * (rest_[3 * b + c] - rest_[3 * a + c]);
+        const double l = std::sqrt(l2);
+        double k = 0;
+        switch (params_.formulation == Formulation::MassSpring ? params_.stiffness : Stiffness::VanGelder) {
+        case Stiffness::Constant: k = sum_e / count * lref; break;
+        case Stiffness::InverseLength: k = sum_e / count * lref * lref / l; break;
+        case Stiffness::VanGelder: k = sum_ev / l2; break;
+        case Stiffness::Havp: k = params_.havp_c * sum_e * l; break;
+        }
+        const double mu = mass_[a] * mass_[b] / (mass_[a] + mass_[b]);
+        springs_.a.push_back(a);
+        springs_.b.push_back(b);
+        springs_.rest_length.push_back(l);
+        springs_.stiffness.push_back(k);
+        springs_.damping.push_back(2 * params_.damping_ratio * std::sqrt(mu * k));
+        min_edge_ = std::min(min_edge_, l);
+        r = e;
+    }
+
+    // FEM: the inverse rest edge matrices; the springs stay for damping and the time step
+    // estimate (Van Gelder k, the stiffness of the same element to within a factor ~1), with no
+    // elastic force of their own (fem_k_ below).
+    tet_dm_inv_.clear();
+    if (params_.formulation != Formulation::MassSpring) {
+        tet_dm_inv_.resize(9 * nt);
+        for (std::size_t t = 0; t < nt; ++t) {
+            const auto& q = mesh_.tets[t];
+            Eigen::Matrix3d dm;
+            for (int c = 0; c < 3; ++c)
+                for (int r = 0; r < 3; ++r)
+                    dm(r, c) = rest_[3 * q[c + 1] + r] - rest_[3 * q[0] + r];
+            const Eigen::Matrix3d inv = dm.inverse();
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c)
+                    tet_dm_inv_[9 * t + 3 * r + c] = inv(r, c);
+        }
+    }
+
+    fem_k_.assign(params_.formulation == Formulation::MassSpring ? 0 : springs_.size(), 0.0);
+    spring_first_.assign(n + 1, 0);
+    for (std::size_t k = 0; k < springs_.size(); ++k)
+        ++spring_first_[std::size_t(springs_.a[k]) + 1];
+    for (std::size_t i = 0; i < n; ++i)
+        spring_first_[i + 1] += spring_first_[i];
+
+    // Boundary faces: faces met once. Sorted vertex triples identify a face.
+    struct FaceRef {
+        std::array<std::int32_t, 3> key;
+        std::array<std::int32_t, 3> face;
+        std::int32_t tet;
+    };
+    std::vector<FaceRef> faces;
+    faces.reserve(4 * nt);
+    for (std::size_t t = 0; t < nt; ++t)
+        for (const auto& f : kTetFaces) {
+            const auto& q = mesh_.tets[t];
+            FaceRef ref{{q[f[0]], q[f[1]], q[f[2]]}, {q[f[0]], q[f[1]], q[f[2]]}, static_cast<std::int32_t>(t)};
+            std::sort(ref.key.begin(), ref.key.end());
+            faces.push_back(ref);
+        }
+    std::sort(faces.begin(), faces.end(), [](const FaceRef& x, const FaceRef& y) { return x.key < y.key; });
+    surface_faces_.clear();
+    surface_face_tets_.clear();
+    std::vector<char> on_surface(n, 0);
+    for (std::size_t r = 0; r < faces.size();) {
+        std::size_t e = r;
+        while (e < faces.size() && faces[e].key == faces[r].key)
+            ++e;
+        if (e - r == 1) {
+            surface_faces_.push_back(faces[r].face);
+            surface_face_tets_.push_back(faces[r].tet);
+            for (auto v : faces[r].face)
+                on_surface[v] = 1;
+        }
+        r = e;
+    }
+    surface_nodes_.clear();
+    for (std::size_t i = 0; i < n; ++i)
+        if (on_surface[i])
+            surface_nodes_.push_back(static_cast<std::int32_t>(i));
+
+    // Time step bounds.
+    dt_critical_ = std::numeric_limits<double>::infinity();
+    std::vector<double> row(3 * n, 0.0);
+    for (std::size_t s = 0; s < springs_.size(); ++s) {
+        const auto a = springs_.a[s], b = springs_.b[s];
+        const double k = springs_.stiffness[s];
+        dt_critical_ = std::min(dt_critical_, kPi * std::sqrt(std::min(mass_[a], mass_[b]) / k));
+        double d[3], sum = 0;
+        for (int c = 0; c < 3; ++c) {
+            d[c] = (rest_[3 * b + c] - rest_[3 * a + c]) / springs_.rest_length[s];
+            sum += std::abs(d[c]);
+        }
+        for (int c = 0; c < 3; ++c) {
+            // |k d d^T| row c, once in the diagonal block and once in the off-diagonal one.
+            row[3 * a + c] += 2 * k * std::abs(d[c]) * sum;
+            row[3 * b + c] += 2 * k * std::abs(d[c]) * sum;
+        }
+    }
+    for (std::size_t t = 0; t < nt; ++t) {
+        if (tet_kv_[t] == 0)
+            continue;
+        const auto& q = mesh_.tets[t];
+        core::Vec3 x[4];
+        for (int i = 0; i < 4; ++i)
+            x[i] = {rest_[3 * q[i]], rest_[3 * q[i] + 1], rest_[3 * q[i] + 2]};
+        const core::Vec3 g[4] = {cross(x[3] - x[1], x[2] - x[1]) / 6, cross(x[2] - x[0], x[3] - x[0]) / 6,
+                                 cross(x[3] - x[0], x[1] - x[0]) / 6, cross(x[1] - x[0], x[2] - x[0]) / 6};
+        double all = 0;
+        for (const auto& gi : g)
+            all += std::abs(gi.x) + std::abs(gi.y) + std::abs(gi.z);
+        for (int i = 0; i < 4; ++i)
+            for (int c = 0; c < 3; ++c)
+                row[3 * q[i] + c] += tet_kv_[t] * std::abs(g[i][c]) * all;
+    }
+    double lambda = 0;
+    for (std::size_t i = 0; i < 3 * n; ++i)
+        lambda = std::max(lambda, row[i] * inv_mass_[i / 3]);
+    dt_gershgorin_ = 2 / std::sqrt(lambda);
+}
+
+double Model::total_mass() const
+{
+    double m = 0;
+    for (double v : mass_)
+        m += v;
+    return m;
+}
+
+double Model::rest_volume() const
+{
+    double v = 0;
+    for (double t : tet_v0_)
+        v += t;
+    return v;
+}
+
+void Model::set_fixed(std::size_t i, bool fixed)
+{
+    if (i >= mass_.size())
+        throw core::InvalidInputError("mass-spring model: node " + std::to_string(i) + " does not exist");
+    inv_mass_[i] = fixed ? 0 : 1 / mass_[i];
+}
+
+std::size_t Model::fix_box(const core::Vec3& lo, const core::Vec3& hi)
+{
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < mesh_.vertices.size(); ++i) {
+        const auto& p = mesh_.vertices[i];
+        if (p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y && p.z >= lo.z && p.z <= hi.z) {
+            inv_mass_[i] = 0;
+            ++count;
+        }
+    }
+    return count;
+}
+
+State Model::rest_state() const
+{
+    State s;
+    s.x = rest_;
+    s.v.assign(rest_.size(), 0.0);
+    return s;
+}
+
+void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
+{
+    const std::size_t n = mass_.size();
+    f.assign(3 * n, 0.0);
+    const double* x = s.x.data();
+    const double* v = s.v.data();
+    double* F = f.data();
+    double e_springs = 0;
+
+    // The hot loop: one pass over the springs grouped by their first node a (they are sorted),
+    // so a's position, velocity and force sum stay in registers for the group: only the second
+    // node's force goes through memory, and no store-to-load chain forms on a.
+    const std::int32_t* sb = springs_.b.data();
+    const double* l0 = springs_.rest_length.data();
+    const double* ks = params_.formulation == Formulation::MassSpring ? springs_.stiffness.data() : fem_k_.data();
+    const double* cs = springs_.damping.data();
+    const std::int32_t* first = spring_first_.data();
+    for (std::size_t na = 0; na < n; ++na) {
+        const std::int32_t k0 = first[na], k1 = first[na + 1];
+        if (k0 == k1)
+            continue;
+        const std::size_t a = 3 * na;
+        const double xa = x[a], ya = x[a + 1], za = x[a + 2];
+        const double ua = v[a], va = v[a + 1], wa = v[a + 2];
+        double fx = 0, fy = 0, fz = 0, e = 0;
+        for (std::int32_t k = k0; k < k1; ++k) {
+            const std::size_t b = 3 * static_cast<std::size_t>(sb[k]);
+            const double dx = x[b] - xa, dy = x[b + 1] - ya, dz = x[b + 2] - za;
+            const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+            const double inv = 1 / l;
+            const double ext = l - l0[k];
+            const double vrel = ((v[b] - ua) * dx + (v[b + 1] - va) * dy + (v[b + 2] - wa) * dz) * inv;
+            // Positive magnitude pulls a towards b: a stretched or separating spring.
+            const double m = (ks[k] * ext + cs[k] * vrel) * inv;
+            fx += m * dx;
+            fy += m * dy;
+            fz += m * dz;
+            F[b] -= m * dx;
+            F[b + 1] -= m * dy;
+            F[b + 2] -= m * dz;
+            e += ks[k] * ext * ext;
+        }
+        F[a] += fx;
+        F[a + 1] += fy;
+        F[a + 2] += fz;
+        e_springs += 0.5 * e;
+    }
+
+    double e_volume = 0;
+    if (params_.stiffness == Stiffness::Havp && params_.volume_coefficient > 0) {
+        const std::size_t nt = mesh_.tets.size();
+        const std::int32_t* tq = mesh_.tets.data()->data();
+        const double* v0 = tet_v0_.data();
+        const double* kv = tet_kv_.data();
+        for (std::size_t t = 0; t < nt; ++t) {
+            const std::size_t i0 = 3 * std::size_t(tq[4 * t]), i1 = 3 * std::size_t(tq[4 * t + 1]),
+                              i2 = 3 * std::size_t(tq[4 * t + 2]), i3 = 3 * std::size_t(tq[4 * t + 3]);
+            const double e1x = x[i1] - x[i0], e1y = x[i1 + 1] - x[i0 + 1], e1z = x[i1 + 2] - x[i0 + 2];
+            const double e2x = x[i2] - x[i0], e2y = x[i2 + 1] - x[i0 + 1], e2z = x[i2 + 2] - x[i0 + 2];
+            const double e3x = x[i3] - x[i0], e3y = x[i3 + 1] - x[i0 + 1], e3z = x[i3 + 2] - x[i0 + 2];
+            // Gradients of V (the thesis's eq. 6.8 with its sign errors corrected): 6 grad_1 V =
+            // e2 x e3, 6 grad_2 V = e3 x e1, 6 grad_3 V = e1 x e2, and grad_0 V = -(their sum),
+            // so the four sum to zero by construction.
+            const double g1x = e2y * e3z - e2z * e3y, g1y = e2z * e3x - e2x * e3z, g1z = e2x * e3y - e2y * e3x;
+            const double g2x = e3y * e1z - e3z * e1y, g2y = e3z * e1x - e3x * e1z, g2z = e3x * e1y - e3y * e1x;
+            const double g3x = e1y * e2z - e1z * e2y, g3y = e1z * e2x - e1x * e2z, g3z = e1x * e2y - e1y * e2x;
+            const double vol = (e1x * g1x + e1y * g1y + e1z * g1z) / 6;
+            const double dv = vol - v0[t];
+            // E = k_V/2 ((V - V0)/V0)^2, so f_i = -(k_V / V0^2) (V - V0) grad_i V.
+            const double m = -kv[t] * dv / 6;
+            F[i1] += m * g1x;
+            F[i1 + 1] += m * g1y;
+            F[i1 + 2] += m * g1z;
+            F[i2] += m * g2x;
+            F[i2 + 1] += m * g2y;
+            F[i2 + 2] += m * g2z;
+            F[i3] += m * g3x;
+            F[i3 + 1] += m * g3y;
+            F[i3 + 2] += m * g3z;
+            F[i0] -= m * (g1x + g2x + g3x);
+            F[i0 + 1] -= m * (g1y + g2y + g3y);
+            F[i0 + 2] -= m * (g1z + g2z + g3z);
+            e_volume += 0.5 * kv[t] * dv * dv;
+        }
+    }
+
+    if (params_.formulation != Formulation::MassSpring) {
+        const double nu = params_.poisson_ratio;
+        const bool corotational = params_.formulation == Formulation::CorotationalFem;
+        for (std::size_t t = 0; t < mesh_.tets.size(); ++t) {
+            const auto& q = mesh_.tets[t];
+            const double e = tet_e_[t], vol = tet_v0_[t];
+            const double lambda = e * nu / ((1 + nu) * (1 - 2 * nu)), mu = e / (2 * (1 + nu));
+            Eigen::Matrix3d ds, dminv;
+            for (int c = 0; c < 3; ++c)
+                for (int r = 0; r < 3; ++r) {
+                    ds(r, c) = x[3 * q[c + 1] + r] - x[3 * q[0] + r];
+                    dminv(c, r) = tet_dm_inv_[9 * t + 3 * c + r];
+                }
+            const Eigen::Matrix3d grad = ds * dminv; // deformation gradient F
+            Eigen::Matrix3d rot = Eigen::Matrix3d::Identity();
+            if (corotational) {
+                const Eigen::JacobiSVD<Eigen::Matrix3d> svd(grad, Eigen::ComputeFullU | Eigen::ComputeFullV);
+                Eigen::Matrix3d u = svd.matrixU();
+                rot = u * svd.matrixV().transpose();
+                if (rot.determinant() < 0) { // an inverted element: the nearest rotation, not a reflection
+                    u.col(2) *= -1;
+                    rot = u * svd.matrixV().transpose();
+                }
+            }
+            const Eigen::Matrix3d s_mat = rot.transpose() * grad;
+            const Eigen::Matrix3d eps = 0.5 * (s_mat + s_mat.transpose()) - Eigen::Matrix3d::Identity();
+            const double tr = eps.trace();
+            const Eigen::Matrix3d stress = lambda * tr * Eigen::Matrix3d::Identity() + 2 * mu * eps;
+            const Eigen::Matrix3d h = -vol * rot * stress * dminv.transpose();
+            for (int j = 0; j < 3; ++j)
+                for (int r = 0; r < 3; ++r) {
+                    F[3 * q[j + 1] + r] += h(r, j);
+                    F[3 * q[0] + r] -= h(r, j);
+                }
+            e_volume += vol * (mu * eps.squaredNorm() + 0.5 * lambda * tr * tr);
+        }
+    }
+
+    const double gx = params_.gravity.x, gy = params_.gravity.y, gz = params_.gravity.z;
+    const double alpha = params_.mass_damping;
+    double e_gravity = 0, e_kinetic = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double m = mass_[i];
+        const double* vi = v + 3 * i;
+        F[3 * i] += m * (gx - alpha * vi[0]);
+        F[3 * i + 1] += m * (gy - alpha * vi[1]);
+        F[3 * i + 2] += m * (gz - alpha * vi[2]);
+        e_gravity -= m * (gx * (x[3 * i] - rest_[3 * i]) + gy * (x[3 * i + 1] - rest_[3 * i + 1]) +
+                          gz * (x[3 * i + 2] - rest_[3 * i + 2]));
+        e_kinetic += 0.5 * m * (vi[0] * vi[0] + vi[1] * vi[1] + vi[2] * vi[2]);
+    }
+    if (energy) {
+        energy->kinetic = e_kinetic;
+        energy->springs = e_springs;
+        energy->volume = e_volume;
+        energy->gravity = e_gravity;
+    }
+}
+
+Energy Model::energy(const State& s) const
+{
+    Energy e;
+    std::vector<double> f;
+    forces(s, f, &e);
+    return e;
+}
+
+} // namespace lobe::mss

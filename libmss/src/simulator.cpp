@@ -1,0 +1,480 @@
+// Time integration, the time step policy, blow-up detection and probe contact.
+#include "lobe/mss/simulator.h"
+
+#include "detail/implicit.h"
+#include "lobe/core/errors.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <optional>
+
+namespace lobe::mss {
+namespace {
+
+std::string sci(double v)
+{
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3g", v);
+    return buf;
+}
+
+// Kinetic + elastic + |gravity|: a magnitude that only grows without bound when the run blows up.
+double magnitude(const Energy& e) { return e.kinetic + e.springs + e.volume + std::abs(e.gravity); }
+
+} // namespace
+
+const char* integrator_name(Integrator i)
+{
+    switch (i) {
+    case Integrator::SymplecticEuler: return "symplectic-euler";
+    case Integrator::VelocityVerlet: return "velocity-verlet";
+    case Integrator::BackwardEuler: return "backward-euler";
+    }
+    return "?";
+}
+Integrator parse_integrator(const std::string& name)
+{
+    for (auto i : {Integrator::SymplecticEuler, Integrator::VelocityVerlet, Integrator::BackwardEuler})
+        if (name == integrator_name(i))
+            return i;
+    throw core::InvalidInputError("unknown integrator '" + name + "' (symplectic-euler, velocity-verlet, backward-euler)");
+}
+const char* linear_solver_name(LinearSolver s) { return s == LinearSolver::Cholmod ? "cholmod" : "cg"; }
+LinearSolver parse_linear_solver(const std::string& name)
+{
+    if (name == "cholmod")
+        return LinearSolver::Cholmod;
+    if (name == "cg")
+        return LinearSolver::ConjugateGradient;
+    throw core::InvalidInputError("unknown linear solver '" + name + "' (cholmod, cg)");
+}
+const char* step_policy_name(StepPolicy p)
+{
+    switch (p) {
+    case StepPolicy::Fixed: return "fixed";
+    case StepPolicy::Critical: return "critical";
+    case StepPolicy::Adaptive: return "adaptive";
+    }
+    return "?";
+}
+StepPolicy parse_step_policy(const std::string& name)
+{
+    for (auto p : {StepPolicy::Fixed, StepPolicy::Critical, StepPolicy::Adaptive})
+        if (name == step_policy_name(p))
+            return p;
+    throw core::InvalidInputError("unknown time step policy '" + name + "' (fixed, critical, adaptive)");
+}
+
+struct Simulator::Impl {
+    Model model;
+    SimulatorParams params;
+    State state;
+    std::vector<ProbeParams> probes;
+    std::vector<double> force, force_next, dv, v_old, v_pred;
+    std::vector<int> touched; // per node: the index + 1 of the probe that moved it this step
+    Energy energy; // of `state`
+    double dt = 0, dt_max = 0, dt_floor = 0, dt_cap = 0;
+    double tolerance = 0, energy_floor = 0;
+    std::unique_ptr<detail::ImplicitSolver> implicit;
+    SimulatorStatistics stats;
+    // Last good state, for rollback.
+    State good;
+    std::vector<double> good_force;
+    Energy good_energy;
+    std::int64_t steps_since_check = 0;
+    double max_speed2 = 0; // squared speed of the fastest node after the last step
+    double probe_work = 0; // work of the probes on the tissue since the last good state [J]
+
+    Impl(Model m, const SimulatorParams& p) : model(std::move(m)), params(p)
+    {
+        const auto& ts = params.time_step;
+        auto bad = [](double v) { return !std::isfinite(v) || v < 0; };
+        if (bad(ts.dt) || !(ts.safety > 0) || bad(ts.safety) || !(ts.max_factor > 0) || bad(ts.max_factor) ||
+            !(ts.floor_factor > 0) || bad(ts.floor_factor) || !(ts.tolerance > 0) || bad(ts.tolerance) ||
+            !(params.max_speed > 0) || !(params.energy_growth > 1) || params.check_interval < 1 || params.refactor_interval < 1 ||
+            !(params.cg_tolerance > 0) || params.cg_max_iterations < 1)
+            throw core::InvalidInputError("simulator: time step factors, tolerance, max_speed, cg settings must be "
+                                          "positive, energy_growth above 1, check_interval at least 1");
+        if (params.integrator == Integrator::BackwardEuler && model.params().formulation != Formulation::MassSpring)
+            throw core::InvalidInputError("simulator: backward Euler supports the mass-spring formulation only, not " +
+                                          std::string(formulation_name(model.params().formulation)));
+        if (ts.policy == StepPolicy::Fixed && !(ts.dt > 0))
+            throw core::InvalidInputError("simulator: the fixed time step policy needs dt > 0");
+        state = model.rest_state();
+        setup();
+    }
+
+    // Everything derived from the model: recomputed when the model changes.
+    void setup()
+    {
+        const auto& ts = params.time_step;
+        const double crit = model.critical_time_step();
+        dt_max = ts.max_factor * crit;
+        dt_floor = ts.floor_factor * crit;
+        dt_cap = dt_max;
+        switch (ts.policy) {
+        case StepPolicy::Fixed: dt = ts.dt; break;
+        case StepPolicy::Critical: dt = ts.safety * crit; break;
+        case StepPolicy::Adaptive: dt = ts.dt > 0 ? ts.dt : ts.safety * crit; break;
+        }
+        tolerance = ts.tolerance * model.min_edge_length();
+        double e_min = std::numeric_limits<double>::infinity();
+        for (const auto& t : model.params().tissues)
+            e_min = std::min(e_min, t.youngs_modulus);
+        energy_floor = 0.5 * e_min * 1e-6 * model.rest_volume();
+        if (params.integrator == Integrator::BackwardEuler)
+            implicit = std::make_unique<detail::ImplicitSolver>(model, params);
+        evaluate(state, force, energy);
+        checkpoint();
+    }
+
+    void evaluate(const State& s, std::vector<double>& f, Energy& e) const { model.forces(s, f, &e); }
+
+    void checkpoint()
+    {
+        good = state;
+        good_force = force;
+        good_energy = energy;
+        steps_since_check = 0;
+        probe_work = 0;
+    }
+
+    void rollback()
+    {
+        state = good;
+        force = good_force;
+        energy = good_energy;
+        steps_since_check = 0;
+        probe_work = 0;
+    }
+
+    // Pushes surface nodes out of every probe at time t; adds the reaction (force of the tissue
+    // on the probes) to `reaction`, the probes' work to `work`, the position corrections to x and
+    // delta / h to v. Marks each moved node with its probe's index + 1. Returns the nodes moved.
+    // The reaction is the impulse the projection gave, m delta / h^2 per node: exact momentum
+    // bookkeeping for the explicit integrators (implicit_reaction replaces it for backward Euler).
+    int contact(State& s, double h, core::Vec3& reaction, std::vector<int>& moved, double& work) const
+    {
+        int count = 0;
+        const auto& m = model.masses();
+        const auto& inv = model.inverse_masses();
+        for (std::size_t p = 0; p < probes.size(); ++p) {
+            const auto& probe = probes[p];
+            const core::Vec3 c = probe_position(probe, s.time) * 1e-3;
+            const core::Vec3 vp = (c - probe_position(probe, s.time - h) * 1e-3) / h;
+            const double r = probe.radius_mm * 1e-3;
+            for (const auto i : model.surface_nodes()) {
+                if (inv[std::size_t(i)] == 0)
+                    continue;
+                double* x = &s.x[3 * std::size_t(i)];
+                const double d[3] = {x[0] - c.x, x[1] - c.y, x[2] - c.z};
+                const double l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if (l2 >= r * r)
+                    continue;
+                const double l = std::sqrt(l2);
+                // A node at the very centre goes out along +z; any direction is as good.
+                const double u[3] = {l > 0 ? d[0] / l : 0, l > 0 ? d[1] / l : 0, l > 0 ? d[2] / l : 1};
+                for (int k = 0; k < 3; ++k) {
+                    const double delta = (r - l) * u[k];
+                    x[k] += delta;
+                    s.v[3 * std::size_t(i) + k] += delta / h;
+                    // The probe gave the node the momentum m delta / h over h: its force on the
+                    // node was m delta / h^2, so the node pushes back with the opposite.
+                    reaction[k] -= m[std::size_t(i)] * delta / (h * h);
+                    work += m[std::size_t(i)] * delta / h * vp[k];
+                }
+                moved[std::size_t(i)] = int(p) + 1;
+                ++count;
+            }
+        }
+        return count;
+    }
+
+    // Backward Euler: the implicit solve already spread each step's motion over the whole mesh,
+    // so the projection impulse no longer measures the contact force. The contact carries instead
+    // the normal part of the force the rest of the tissue exerts on each touched node (exact at
+    // rest, where it balances the supports).
+    void implicit_reaction(const State& s, double h, const std::vector<double>& f, const std::vector<int>& moved,
+                           core::Vec3& reaction, double& work) const
+    {
+        for (std::size_t i = 0; i < moved.size(); ++i) {
+            if (!moved[i])
+                continue;
+            const auto& probe = probes[std::size_t(moved[i] - 1)];
+            const core::Vec3 c = probe_position(probe, s.time) * 1e-3;
+            const core::Vec3 vp = (c - probe_position(probe, s.time - h) * 1e-3) / h;
+            const core::Vec3 n = normalized(core::Vec3{s.x[3 * i], s.x[3 * i + 1], s.x[3 * i + 2]} - c);
+            const double fn = f[3 * i] * n.x + f[3 * i + 1] * n.y + f[3 * i + 2] * n.z;
+            if (fn < 0) {
+                reaction += n * fn;
+                work -= fn * dot(n, vp) * h;
+            }
+        }
+    }
+
+    // One step of size h from `state`, with `force` = forces at `state`. Leaves the new state,
+    // its forces and energy; returns the error estimate.
+    double integrate(double h, StepInfo& info)
+    {
+        const std::size_t n = model.node_count();
+        const auto& inv = model.inverse_masses();
+        // In place: a blow-up goes back to the checkpoint, so the old state is not needed.
+        State& next = state;
+        next.time = state.time + h;
+        if (!probes.empty())
+            touched.assign(n, 0);
+        core::Vec3 reaction{0, 0, 0};
+        int contacts = 0;
+        Energy e_next;
+        double* x = next.x.data();
+        double* v = next.v.data();
+        switch (params.integrator) {
+        case Integrator::SymplecticEuler:
+            for (std::size_t i = 0; i < n; ++i) {
+                const double w = h * inv[i];
+                for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                    v[k] += w * force[k];
+                    x[k] += h * v[k];
+                }
+            }
+            if (!probes.empty())
+                contacts = contact(next, h, reaction, touched, probe_work);
+            evaluate(next, force_next, e_next);
+            break;
+        case Integrator::VelocityVerlet: {
+            v_old = next.v;
+            for (std::size_t i = 0; i < n; ++i)
+                for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                    const double a = force[k] * inv[i];
+                    x[k] += h * v[k] + 0.5 * h * h * a;
+                    v[k] += h * a; // predicted, for the damping forces
+                }
+            if (!probes.empty()) {
+                v_pred = next.v;
+                contacts = contact(next, h, reaction, touched, probe_work);
+            }
+            model.forces(next, force_next, &e_next);
+            for (std::size_t i = 0; i < n; ++i)
+                for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                    const double correction = probes.empty() ? 0 : v[k] - v_pred[k];
+                    v[k] = v_old[k] + 0.5 * h * (force[k] + force_next[k]) * inv[i] + correction;
+                }
+            e_next.kinetic = 0;
+            const auto& m = model.masses();
+            for (std::size_t i = 0; i < n; ++i)
+                e_next.kinetic += 0.5 * m[i] * (v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
+            // Damping forces were evaluated with the predicted velocity; refresh them.
+            if (model.params().damping_ratio > 0 || model.params().mass_damping > 0)
+                model.forces(next, force_next);
+            break;
+        }
+        case Integrator::BackwardEuler: {
+            stats.cg_iterations += implicit->solve(state, force, h, dv);
+            for (std::size_t i = 0; i < n; ++i)
+                for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                    v[k] += inv[i] == 0 ? 0 : dv[k];
+                    x[k] += h * v[k];
+                }
+            if (!probes.empty()) {
+                double ignored = 0;
+                contacts = contact(next, h, reaction, touched, ignored);
+                reaction = {0, 0, 0};
+            }
+            evaluate(next, force_next, e_next);
+            if (contacts > 0)
+                implicit_reaction(next, h, force_next, touched, reaction, probe_work);
+            stats.factorizations = implicit->factorizations();
+            break;
+        }
+        }
+        // Error estimate: dt^2/2 |a(t+h) - a(t)|, over free nodes the probes did not move.
+        // The same pass finds the fastest node for the blow-up check.
+        double err = 0, vmax2 = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            vmax2 = std::max(vmax2, v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
+            if (inv[i] == 0 || (!touched.empty() && touched[i]))
+                continue;
+            double d2 = 0;
+            for (int k = 0; k < 3; ++k) {
+                const double d = (force_next[3 * i + k] - force[3 * i + k]) * inv[i];
+                d2 += d * d;
+            }
+            err = std::max(err, d2);
+        }
+        err = 0.5 * h * h * std::sqrt(err);
+        max_speed2 = vmax2;
+        force.swap(force_next);
+        energy = e_next;
+        info.time = state.time;
+        info.dt = h;
+        info.force = reaction;
+        info.energy = energy;
+        info.contacts = contacts;
+        return err;
+    }
+
+    // Why the current state is blown up, or empty.
+    std::string blow_up(bool energy_check) const
+    {
+        // A non-finite position or velocity makes the energy non-finite (every node is in a
+        // spring and carries kinetic energy), so no separate pass over the nodes is needed.
+        if (!std::isfinite(energy.total()) || !std::isfinite(max_speed2))
+            return "a node position or velocity is not finite";
+        if (max_speed2 > params.max_speed * params.max_speed)
+            return "a node moves at " + sci(std::sqrt(max_speed2)) + " m/s (limit " + sci(params.max_speed) + " m/s)";
+        if (energy_check) {
+            // Energy balance: without blow-up the total energy (gravity included) only falls by
+            // damping and rises by the probes' work; allow (growth - 1) x its magnitude. The work
+            // is estimated from the contact impulses, so its own size is part of the scale.
+            const double excess = energy.total() - good_energy.total() - probe_work;
+            const double scale = std::max({magnitude(good_energy), std::abs(probe_work), energy_floor});
+            if (excess > (params.energy_growth - 1) * scale)
+                return "the energy rose by " + sci(excess) + " J beyond the work of the instruments in " +
+                       std::to_string(steps_since_check) + " steps (from " + sci(good_energy.total()) + " J)";
+        }
+        return {};
+    }
+
+    // One step of at most h_limit; `landing` = the step is meant to end at a requested time.
+    StepInfo step(double h_limit, bool landing)
+    {
+        const bool adaptive = params.time_step.policy == StepPolicy::Adaptive;
+        for (;;) {
+            double h = std::min(dt, h_limit);
+            StepInfo info;
+            info.at_floor = adaptive && dt <= dt_floor;
+            // A step that lands on a requested time (an output frame) is checked in full and
+            // becomes the last good state, so what is written out never has to be taken back.
+            const double err = integrate(h, info);
+            ++steps_since_check;
+            const bool full_check = (landing && h == h_limit) || steps_since_check >= params.check_interval;
+            const std::string why = blow_up(full_check);
+            if (!why.empty()) {
+                const double t_bad = state.time;
+                rollback();
+                if (adaptive && dt > dt_floor) {
+                    // Paloc's empirical rule: back off below the step that failed and stay there.
+                    ++stats.rollbacks;
+                    dt_cap = std::max(dt_floor, 0.5 * dt);
+                    dt = std::max(dt_floor, 0.25 * dt);
+                    continue;
+                }
+                throw core::SolverError(std::string(integrator_name(params.integrator)) + " blew up at t = " + sci(t_bad) +
+                                        " s with dt = " + sci(h) + " s (critical step estimate " +
+                                        sci(model.critical_time_step()) + " s, Gershgorin bound " +
+                                        sci(model.gershgorin_time_step()) + " s): " + why +
+                                        "; the state is the last good one, at t = " + sci(state.time) + " s");
+            }
+            if (full_check)
+                checkpoint();
+            ++stats.steps;
+            stats.min_dt = stats.steps == 1 ? h : std::min(stats.min_dt, h);
+            stats.max_dt = std::max(stats.max_dt, h);
+            stats.max_error = std::max(stats.max_error, err);
+            if (info.at_floor)
+                ++stats.floor_hits;
+            if (adaptive && h == dt) {
+                if (err > tolerance) {
+                    ++stats.step_cuts;
+                    dt_cap = std::min(dt_cap, std::max(dt_floor, 0.8 * dt));
+                    dt = std::max(dt_floor, dt * std::max(0.5, 0.9 * std::sqrt(tolerance / err)));
+                } else if (err < 0.25 * tolerance) {
+                    dt = std::min(dt * 1.05, dt_cap);
+                }
+            }
+            return info;
+        }
+    }
+};
+
+Simulator::Simulator(Model model, const SimulatorParams& params) : impl_(std::make_unique<Impl>(std::move(model), params)) {}
+Simulator::~Simulator() = default;
+Simulator::Simulator(Simulator&&) noexcept = default;
+Simulator& Simulator::operator=(Simulator&&) noexcept = default;
+
+const Model& Simulator::model() const { return impl_->model; }
+const SimulatorParams& Simulator::params() const { return impl_->params; }
+const State& Simulator::state() const { return impl_->state; }
+const std::vector<ProbeParams>& Simulator::probes() const { return impl_->probes; }
+double Simulator::time_step() const { return impl_->dt; }
+const SimulatorStatistics& Simulator::statistics() const { return impl_->stats; }
+
+void Simulator::set_state(const State& s)
+{
+    Impl& m = *impl_;
+    if (s.x.size() != 3 * m.model.node_count() || s.v.size() != s.x.size())
+        throw core::InvalidInputError("simulator: the state has " + std::to_string(s.x.size() / 3) + " nodes, the model " +
+                                      std::to_string(m.model.node_count()));
+    m.state = s;
+    m.evaluate(m.state, m.force, m.energy);
+    m.checkpoint();
+}
+
+std::size_t Simulator::add_probe(const ProbeParams& probe)
+{
+    validate_probe(probe);
+    impl_->probes.push_back(probe);
+    return impl_->probes.size() - 1;
+}
+
+StepInfo Simulator::step() { return impl_->step(std::numeric_limits<double>::infinity(), false); }
+
+StepInfo Simulator::step_until(double t_end)
+{
+    const double left = t_end - impl_->state.time;
+    if (!(left > 0))
+        throw core::InvalidInputError("simulator: step_until(" + sci(t_end) + " s) is not after the current time " +
+                                      sci(impl_->state.time) + " s");
+    // Avoid a sliver of a step just before t_end: split what is left in two instead.
+    const double dt = impl_->dt;
+    const double h = left <= dt ? left : (left < 1.5 * dt ? 0.5 * left : dt);
+    StepInfo info = impl_->step(h, left <= dt);
+    if (left <= dt && info.dt == left)
+        impl_->state.time = t_end; // exactly, despite rounding
+    return info;
+}
+
+void Simulator::advance_to(double t_end, const std::function<void(const StepInfo&)>& on_step)
+{
+    while (impl_->state.time < t_end) {
+        const StepInfo info = step_until(t_end);
+        if (on_step)
+            on_step(info);
+    }
+}
+
+// ---- probes ----------------------------------------------------------------------------------
+
+core::Vec3 probe_position(const ProbeParams& p, double t)
+{
+    const auto& path = p.path;
+    if (t <= path.front().time)
+        return path.front().position_mm;
+    for (std::size_t i = 1; i < path.size(); ++i)
+        if (t <= path[i].time) {
+            const double w = (t - path[i - 1].time) / (path[i].time - path[i - 1].time);
+            return path[i - 1].position_mm * (1 - w) + path[i].position_mm * w;
+        }
+    return path.back().position_mm;
+}
+
+void validate_probe(const ProbeParams& p)
+{
+    const std::string what = "probe '" + p.name + "'";
+    if (!(p.radius_mm > 0) || !std::isfinite(p.radius_mm))
+        throw core::InvalidInputError(what + ": the radius must be positive");
+    if (p.path.empty())
+        throw core::InvalidInputError(what + ": the path has no point");
+    for (std::size_t i = 0; i < p.path.size(); ++i) {
+        const auto& q = p.path[i];
+        if (!std::isfinite(q.time) || !std::isfinite(q.position_mm.x) || !std::isfinite(q.position_mm.y) ||
+            !std::isfinite(q.position_mm.z))
+            throw core::InvalidInputError(what + ": path point " + std::to_string(i + 1) + " is not finite");
+        if (i > 0 && !(q.time > p.path[i - 1].time))
+            throw core::InvalidInputError(what + ": path times must increase (point " + std::to_string(i + 1) + ")");
+    }
+}
+
+} // namespace lobe::mss

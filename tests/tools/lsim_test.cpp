@@ -1,0 +1,142 @@
+// lsim run as a program: exit codes, messages, the container it writes, pictures.
+#include "lobe/io/hdf5.h"
+
+#include "common/run_tool.h"
+#include "common/test_data.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <string>
+
+using namespace lobe;
+namespace fs = std::filesystem;
+
+namespace {
+
+test::ToolRun lsim(const std::string& args, const fs::path& scratch) { return test::run_tool(LSIM_EXE, args, scratch); }
+
+std::string q(const fs::path& p) { return test::shell_quote(p.string()); }
+
+fs::path write_text(const fs::path& path, const std::string& text)
+{
+    std::ofstream(path) << text;
+    return path;
+}
+
+// A 40 mm cube of 4^3 cells with a tumour, pressed by a probe for 0.2 s.
+const char* kScene = R"(# test scene
+[model]
+stiffness = havp
+mass_damping = 10
+[fixed]
+box = -1 -1 -1 41 41 0.001
+[time]
+duration = 0.2
+frame_interval = 0.05
+[probe]
+radius = 12
+point = 0 20 20 52
+point = 0.2 20 20 48
+[output]
+png_times = 0 0.2
+)";
+
+} // namespace
+
+TEST(Lsim, HelpAndUsageErrors)
+{
+    const fs::path dir = test::scratch_dir();
+    EXPECT_EQ(lsim("--help", dir).exit_code, 0);
+    EXPECT_NE(lsim("--help", dir).out.find("--make-block"), std::string::npos);
+    const auto r = lsim("", dir);
+    EXPECT_EQ(r.exit_code, 1);
+    EXPECT_NE(r.err.find("MESH SCENE"), std::string::npos) << r.err;
+}
+
+TEST(Lsim, RunsAProbeSceneAndWritesFramesStepsStatisticsAndPictures)
+{
+    const fs::path dir = test::scratch_dir();
+    ASSERT_EQ(lsim("--quiet --make-block " + q(dir / "block.h5") + " --cells 4,4,4 --size 40 --tumour 20,20,20,8", dir).exit_code, 0);
+    const fs::path scene = write_text(dir / "probe.scene", kScene);
+    const auto r = lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5") + " --png " + q(dir / "pics"), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("us per step"), std::string::npos) << r.err;
+
+    io::Hdf5Reader in(dir / "sim.h5");
+    ASSERT_EQ(in.simulations(), std::vector<std::string>{"run"});
+    const io::SimulationInfo s = in.read_simulation("run");
+    EXPECT_EQ(s.status, "completed");
+    EXPECT_EQ(s.mesh, "block");
+    // Frames at 0, 0.05, ..., 0.2 s: exactly 5, the last at the duration (times are landed on).
+    ASSERT_EQ(s.times.size(), 5u);
+    EXPECT_DOUBLE_EQ(s.times.back(), 0.2);
+    ASSERT_GT(s.steps.size(), 10u);
+    EXPECT_DOUBLE_EQ(s.steps.back().time, 0.2);
+    // The probe pushes the tissue down: the tissue pushes the probe up by the end.
+    EXPECT_GT(s.steps.back().force.z, 0);
+    double steps_stat = -1;
+    for (const auto& [k, v] : s.statistics)
+        if (k == "steps")
+            steps_stat = v;
+    EXPECT_EQ(steps_stat, double(s.steps.size()));
+    // Every frame finite, and the top centre moved down under the probe (it is 4 mm in).
+    const auto last = in.read_frame("run", 4);
+    const auto first = in.read_frame("run", 0);
+    double lowest = 1e300;
+    for (std::size_t i = 0; i < last.size(); ++i) {
+        ASSERT_TRUE(std::isfinite(last[i].x + last[i].y + last[i].z));
+        if (first[i].z > 40 - 1e-9)
+            lowest = std::min(lowest, last[i].z);
+    }
+    EXPECT_LT(lowest, 40 - 2); // a node under the 12 mm sphere 4 mm in sits at least 2 mm down
+    const auto prov = in.provenance();
+    ASSERT_EQ(prov.size(), 2u); // --make-block, then this run
+    EXPECT_EQ(prov[1].tool, "lsim");
+    bool has_scene = false;
+    for (const auto& [k, v] : prov[1].parameters)
+        has_scene = has_scene || (k == "scene" && v.find("[probe]") != std::string::npos);
+    EXPECT_TRUE(has_scene);
+    EXPECT_NE(test::read_file(dir / "sim.xdmf").find("CollectionType=\"Temporal\""), std::string::npos);
+    EXPECT_TRUE(fs::exists(dir / "pics" / "force.png"));
+    EXPECT_TRUE(fs::exists(dir / "pics" / "frame_000.000s.png"));
+    EXPECT_TRUE(fs::exists(dir / "pics" / "frame_000.200s.png"));
+}
+
+TEST(Lsim, SceneErrorsNameTheLine)
+{
+    const fs::path dir = test::scratch_dir();
+    ASSERT_EQ(lsim("--quiet --make-block " + q(dir / "block.h5") + " --cells 2,2,2", dir).exit_code, 0);
+    const fs::path scene = write_text(dir / "bad.scene", "[model]\nstiffness = havp\nstifness = 3\n");
+    const auto r = lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("bad.scene:3: unknown key 'stifness'"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "sim.h5"));
+    write_text(scene, "[time]\nduration = -1\n");
+    EXPECT_NE(lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5"), dir).err.find("bad.scene:2:"),
+              std::string::npos);
+}
+
+TEST(Lsim, ABlowUpExitsWith3AndKeepsTheLastGoodFrames)
+{
+    // A fixed step 3x Paloc's critical step (about 10x the explicit limit) under gravity: the run
+    // must stop with exit code 3 and a message, and the container must hold only finite frames,
+    // marked with why it stopped.
+    const fs::path dir = test::scratch_dir();
+    ASSERT_EQ(lsim("--quiet --make-block " + q(dir / "block.h5") + " --cells 3,3,3", dir).exit_code, 0);
+    const fs::path scene = write_text(dir / "blow.scene", "[model]\ngravity = 0 0 -9.81\n[fixed]\nbox = -1 -1 -1 41 41 0.001\n"
+                                                          "[time]\npolicy = fixed\ndt = 0.02\nduration = 2\n");
+    const auto r = lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5"), dir);
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find("blew up"), std::string::npos) << r.err;
+    io::Hdf5Reader in(dir / "sim.h5");
+    const auto s = in.read_simulation("run");
+    EXPECT_NE(s.status.find("blew up"), std::string::npos);
+    EXPECT_LT(s.times.size(), 101u);
+    for (std::size_t f = 0; f < s.times.size(); ++f)
+        for (const auto& p : in.read_frame("run", f)) // read_frame itself refuses non-finite values
+            ASSERT_TRUE(std::isfinite(p.z));
+    for (const auto& st : s.steps)
+        ASSERT_TRUE(std::isfinite(st.energy));
+}
