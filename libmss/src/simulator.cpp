@@ -415,6 +415,17 @@ void Simulator::set_state(const State& s)
 std::size_t Simulator::add_probe(const ProbeParams& probe)
 {
     validate_probe(probe);
+    // A probe that appears inside the tissue would be resolved by one huge projection impulse
+    // (a blow-up a few steps later); refuse it with the depth instead.
+    const Impl& m = *impl_;
+    const core::Vec3 c = probe_position(probe, m.state.time);
+    double depth = 0;
+    for (const auto i : m.model.surface_nodes())
+        depth = std::max(depth, probe.radius_mm - norm(m.state.position_mm(std::size_t(i)) - c));
+    if (depth > 1e-3) // a micron: touching is fine
+        throw core::InvalidInputError("probe '" + probe.name + "' starts " + sci(depth) +
+                                      " mm inside the tissue at t = " + sci(m.state.time) +
+                                      " s: start its path clear of the surface");
     impl_->probes.push_back(probe);
     return impl_->probes.size() - 1;
 }

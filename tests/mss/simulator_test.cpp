@@ -394,3 +394,23 @@ TEST(MssSimulator, ProbeNextToAStiffTumourIsStableAndBalanced)
     EXPECT_TRUE(implicit.finite);
     EXPECT_GT(implicit.min_tet_volume, 0);
 }
+
+TEST(MssSimulator, ProbeThatStartsInsideTheTissueIsRefused)
+{
+    // A probe that appears 3 mm deep in the 40 mm cube's top face would be resolved by one huge
+    // projection impulse; add_probe refuses it and names the depth. Touching (depth 0) is fine.
+    mss::Simulator sim(cube(4));
+    mss::ProbeParams deep;
+    deep.radius_mm = 10;
+    deep.path = {{0, {20, 20, 47}}};
+    try {
+        sim.add_probe(deep);
+        FAIL() << "a probe inside the tissue was accepted";
+    } catch (const core::InvalidInputError& e) {
+        EXPECT_NE(std::string(e.what()).find("starts 3 mm inside"), std::string::npos) << e.what();
+    }
+    EXPECT_TRUE(sim.probes().empty());
+    mss::ProbeParams touching = deep;
+    touching.path = {{0, {20, 20, 50}}};
+    EXPECT_EQ(sim.add_probe(touching), 0u);
+}

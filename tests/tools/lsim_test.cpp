@@ -116,6 +116,12 @@ TEST(Lsim, SceneErrorsNameTheLine)
     write_text(scene, "[time]\nduration = -1\n");
     EXPECT_NE(lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5"), dir).err.find("bad.scene:2:"),
               std::string::npos);
+    // A probe that starts inside the 40 mm block (centre 5 mm below its top face, radius 10)
+    write_text(scene, "[time]\nduration = 0.1\n[probe]\nradius = 10\npoint = 0 20 20 35\n");
+    const auto inside = lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5"), dir);
+    EXPECT_EQ(inside.exit_code, 2);
+    EXPECT_NE(inside.err.find("bad.scene: probe 'probe0' starts"), std::string::npos) << inside.err;
+    EXPECT_FALSE(fs::exists(dir / "sim.h5"));
 }
 
 TEST(Lsim, ABlowUpExitsWith3AndKeepsTheLastGoodFrames)

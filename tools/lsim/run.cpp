@@ -70,7 +70,11 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
                          num(model.critical_time_step() * 1e3) + " ms");
         sim.emplace(std::move(model), scene.simulator);
         for (const auto& p : scene.probes)
-            sim->add_probe(p);
+            try {
+                sim->add_probe(p);
+            } catch (const core::InvalidInputError& e) {
+                throw core::InvalidInputError(o.scene_file.string() + ": " + e.what());
+            }
     });
     const mss::Model& model = sim->model();
 

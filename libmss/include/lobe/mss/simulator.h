@@ -111,7 +111,8 @@ public:
     const State& state() const;
     //! Replaces the state (same node count). \throw core::InvalidInputError otherwise
     void set_state(const State& s);
-    //! Adds a probe; returns its index. \throw core::InvalidInputError via validate_probe
+    //! Adds a probe; returns its index. \throw core::InvalidInputError via validate_probe, or
+    //!        if a surface node lies inside the probe at the current time
     std::size_t add_probe(const ProbeParams& probe);
     const std::vector<ProbeParams>& probes() const;
 
