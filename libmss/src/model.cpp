@@ -2,6 +2,7 @@
 // (docs/algorithms/mass_spring.md).
 #include "lobe/mss/model.h"
 
+#include "detail/tet_tables.h"
 #include "lobe/core/errors.h"
 
 #include <Eigen/Dense>
@@ -9,7 +10,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <map>
 #include <tuple>
 
 namespace lobe::mss {
@@ -20,10 +20,8 @@ constexpr double kMmToM = 1e-3;
 
 bool positive_finite(double v) { return std::isfinite(v) && v > 0; }
 
-// Outward faces of a positively oriented tet (a, b, c, d): d lies on the side of face (a, b, c)
-// its normal (b - a) x (c - a) points to, so that face is listed reversed.
-constexpr int kTetFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
-constexpr int kTetEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+using detail::kTetEdges;
+using detail::kTetFaces;
 
 } // namespace
 
@@ -108,27 +106,17 @@ void Model::build()
     for (std::size_t i = 0; i < n; ++i)
         for (int c = 0; c < 3; ++c)
             rest_[3 * i + c] = mesh_.vertices[i][c] * kMmToM;
-
-    std::map<std::int32_t, TissueMaterial> materials;
-    for (const auto& t : params_.tissues)
-        materials[t.label] = t;
+    fixed_.assign(n, 0);
     tet_e_.assign(nt, 0);
     tet_v0_.assign(nt, 0);
     tet_kv_.assign(nt, 0);
+    tet_density_.assign(nt, 0);
+    tet_dm_inv_.assign(params_.formulation == Formulation::MassSpring ? 0 : 9 * nt, 0.0);
     mass_.assign(n, 0);
     for (std::size_t t = 0; t < nt; ++t) {
-        const auto it = materials.find(mesh_.tet_labels[t]);
-        if (it == materials.end())
-            throw core::InvalidInputError("mass-spring model: tet " + std::to_string(t) + " has tissue label " +
-                                          std::to_string(mesh_.tet_labels[t]) + ", which has no material");
-        const double v = core::signed_volume(mesh_, t) * kMmToM * kMmToM * kMmToM;
-        tet_e_[t] = it->second.youngs_modulus;
-        tet_v0_[t] = v;
+        set_tet(t);
         for (auto i : mesh_.tets[t])
-            mass_[i] += it->second.density * v / 4;
-        if (params_.formulation == Formulation::MassSpring && params_.stiffness == Stiffness::Havp &&
-            params_.volume_coefficient > 0)
-            tet_kv_[t] = params_.volume_coefficient * tet_e_[t] * v / (v * v);
+            mass_[i] += tet_density_[t] * tet_v0_[t] / 4;
     }
     for (std::size_t i = 0; i < n; ++i)
         if (mass_[i] <= 0)
@@ -153,8 +141,9 @@ void Model::build()
     }
     std::sort(refs.begin(), refs.end(), [](const EdgeRef& x, const EdgeRef& y) { return std::tie(x.a, x.b) < std::tie(y.a, y.b); });
     springs_ = {};
-    min_edge_ = std::numeric_limits<double>::infinity();
-    const double lref = params_.reference_length_mm * kMmToM;
+    spring_sum_e_.clear();
+    spring_sum_ev_.clear();
+    spring_count_.clear();
     for (std::size_t r = 0; r < refs.size();) {
         std::size_t e = r;
         double sum_e = 0, sum_ev = 0;
@@ -168,49 +157,18 @@ void Model::build()
         double l2 = 0;
         for (int c = 0; c < 3; ++c)
             l2 += (rest_[3 * b + c] - rest_[3 * a + c]) * (rest_[3 * b + c] - rest_[3 * a + c]);
-        const double l = std::sqrt(l2);
-        double k = 0;
-        switch (params_.formulation == Formulation::MassSpring ? params_.stiffness : Stiffness::VanGelder) {
-        case Stiffness::Constant: k = sum_e / count * lref; break;
-        case Stiffness::InverseLength: k = sum_e / count * lref * lref / l; break;
-        case Stiffness::VanGelder: k = sum_ev / l2; break;
-        case Stiffness::Havp: k = params_.havp_c * sum_e * l; break;
-        }
-        const double mu = mass_[a] * mass_[b] / (mass_[a] + mass_[b]);
         springs_.a.push_back(a);
         springs_.b.push_back(b);
-        springs_.rest_length.push_back(l);
-        springs_.stiffness.push_back(k);
-        springs_.damping.push_back(2 * params_.damping_ratio * std::sqrt(mu * k));
-        min_edge_ = std::min(min_edge_, l);
+        springs_.rest_length.push_back(std::sqrt(l2));
+        springs_.stiffness.push_back(0);
+        springs_.damping.push_back(0);
+        spring_sum_e_.push_back(sum_e);
+        spring_sum_ev_.push_back(sum_ev);
+        spring_count_.push_back(count);
+        set_spring(springs_.size() - 1);
         r = e;
     }
-
-    // FEM: the inverse rest edge matrices; the springs stay for damping and the time step
-    // estimate (Van Gelder k, the stiffness of the same element to within a factor ~1), with no
-    // elastic force of their own (fem_k_ below).
-    tet_dm_inv_.clear();
-    if (params_.formulation != Formulation::MassSpring) {
-        tet_dm_inv_.resize(9 * nt);
-        for (std::size_t t = 0; t < nt; ++t) {
-            const auto& q = mesh_.tets[t];
-            Eigen::Matrix3d dm;
-            for (int c = 0; c < 3; ++c)
-                for (int r = 0; r < 3; ++r)
-                    dm(r, c) = rest_[3 * q[c + 1] + r] - rest_[3 * q[0] + r];
-            const Eigen::Matrix3d inv = dm.inverse();
-            for (int r = 0; r < 3; ++r)
-                for (int c = 0; c < 3; ++c)
-                    tet_dm_inv_[9 * t + 3 * r + c] = inv(r, c);
-        }
-    }
-
     fem_k_.assign(params_.formulation == Formulation::MassSpring ? 0 : springs_.size(), 0.0);
-    spring_first_.assign(n + 1, 0);
-    for (std::size_t k = 0; k < springs_.size(); ++k)
-        ++spring_first_[std::size_t(springs_.a[k]) + 1];
-    for (std::size_t i = 0; i < n; ++i)
-        spring_first_[i + 1] += spring_first_[i];
 
     // Boundary faces: faces met once. Sorted vertex triples identify a face.
     struct FaceRef {
@@ -230,7 +188,6 @@ void Model::build()
     std::sort(faces.begin(), faces.end(), [](const FaceRef& x, const FaceRef& y) { return x.key < y.key; });
     surface_faces_.clear();
     surface_face_tets_.clear();
-    std::vector<char> on_surface(n, 0);
     for (std::size_t r = 0; r < faces.size();) {
         std::size_t e = r;
         while (e < faces.size() && faces[e].key == faces[r].key)
@@ -238,54 +195,146 @@ void Model::build()
         if (e - r == 1) {
             surface_faces_.push_back(faces[r].face);
             surface_face_tets_.push_back(faces[r].tet);
-            for (auto v : faces[r].face)
-                on_surface[v] = 1;
         }
         r = e;
     }
-    surface_nodes_.clear();
-    for (std::size_t i = 0; i < n; ++i)
-        if (on_surface[i])
-            surface_nodes_.push_back(static_cast<std::int32_t>(i));
+    surface_nodes_stale_ = true;
+    bounds_stale_ = true;
+}
 
-    // Time step bounds.
+void Model::set_tet(std::size_t t)
+{
+    const auto label = mesh_.tet_labels[t];
+    const TissueMaterial* mat = nullptr;
+    for (const auto& m : params_.tissues)
+        if (m.label == label)
+            mat = &m;
+    if (!mat)
+        throw core::InvalidInputError("mass-spring model: tet " + std::to_string(t) + " has tissue label " +
+                                      std::to_string(label) + ", which has no material");
+    const double v = core::signed_volume(mesh_, t) * kMmToM * kMmToM * kMmToM;
+    tet_e_[t] = mat->youngs_modulus;
+    tet_density_[t] = mat->density;
+    tet_v0_[t] = v;
+    tet_kv_[t] = params_.formulation == Formulation::MassSpring && params_.stiffness == Stiffness::Havp &&
+                         params_.volume_coefficient > 0
+                     ? params_.volume_coefficient * tet_e_[t] * v / (v * v)
+                     : 0;
+    // FEM: the inverse rest edge matrix; the springs stay for damping and the time step estimate
+    // (Van Gelder k, the stiffness of the same element to within a factor ~1), with no elastic
+    // force of their own (fem_k_).
+    if (params_.formulation != Formulation::MassSpring) {
+        const auto& q = mesh_.tets[t];
+        Eigen::Matrix3d dm;
+        for (int c = 0; c < 3; ++c)
+            for (int r = 0; r < 3; ++r)
+                dm(r, c) = rest_[3 * std::size_t(q[std::size_t(c) + 1]) + std::size_t(r)] - rest_[3 * std::size_t(q[0]) + std::size_t(r)];
+        const Eigen::Matrix3d inv = dm.inverse();
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c)
+                tet_dm_inv_[9 * t + 3 * std::size_t(r) + std::size_t(c)] = inv(r, c);
+    }
+}
+
+void Model::set_spring(std::size_t k)
+{
+    const double l = springs_.rest_length[k];
+    const double sum_e = spring_sum_e_[k], sum_ev = spring_sum_ev_[k];
+    const int count = spring_count_[k];
+    const double lref = params_.reference_length_mm * kMmToM;
+    double stiff = 0;
+    switch (params_.formulation == Formulation::MassSpring ? params_.stiffness : Stiffness::VanGelder) {
+    case Stiffness::Constant: stiff = sum_e / count * lref; break;
+    case Stiffness::InverseLength: stiff = sum_e / count * lref * lref / l; break;
+    case Stiffness::VanGelder: stiff = sum_ev / (l * l); break;
+    case Stiffness::Havp: stiff = params_.havp_c * sum_e * l; break;
+    }
+    const double ma = mass_[std::size_t(springs_.a[k])], mb = mass_[std::size_t(springs_.b[k])];
+    const double mu = ma * mb / (ma + mb);
+    springs_.stiffness[k] = stiff;
+    springs_.damping[k] = 2 * params_.damping_ratio * std::sqrt(mu * stiff);
+}
+
+void Model::update_bounds() const
+{
+    const std::size_t n = mass_.size();
     dt_critical_ = std::numeric_limits<double>::infinity();
+    min_edge_ = std::numeric_limits<double>::infinity();
     std::vector<double> row(3 * n, 0.0);
+    double ratio = std::numeric_limits<double>::infinity(); // min m / k: one square root at the end
     for (std::size_t s = 0; s < springs_.size(); ++s) {
-        const auto a = springs_.a[s], b = springs_.b[s];
+        const auto a = std::size_t(springs_.a[s]), b = std::size_t(springs_.b[s]);
         const double k = springs_.stiffness[s];
-        dt_critical_ = std::min(dt_critical_, kPi * std::sqrt(std::min(mass_[a], mass_[b]) / k));
+        ratio = std::min(ratio, std::min(mass_[a], mass_[b]) / k);
+        min_edge_ = std::min(min_edge_, springs_.rest_length[s]);
         double d[3], sum = 0;
-        for (int c = 0; c < 3; ++c) {
+        for (std::size_t c = 0; c < 3; ++c) {
             d[c] = (rest_[3 * b + c] - rest_[3 * a + c]) / springs_.rest_length[s];
             sum += std::abs(d[c]);
         }
-        for (int c = 0; c < 3; ++c) {
+        for (std::size_t c = 0; c < 3; ++c) {
             // |k d d^T| row c, once in the diagonal block and once in the off-diagonal one.
             row[3 * a + c] += 2 * k * std::abs(d[c]) * sum;
             row[3 * b + c] += 2 * k * std::abs(d[c]) * sum;
         }
     }
-    for (std::size_t t = 0; t < nt; ++t) {
+    dt_critical_ = kPi * std::sqrt(ratio);
+    for (std::size_t t = 0; t < mesh_.tets.size(); ++t) {
         if (tet_kv_[t] == 0)
             continue;
         const auto& q = mesh_.tets[t];
         core::Vec3 x[4];
-        for (int i = 0; i < 4; ++i)
-            x[i] = {rest_[3 * q[i]], rest_[3 * q[i] + 1], rest_[3 * q[i] + 2]};
+        for (std::size_t i = 0; i < 4; ++i)
+            x[i] = {rest_[3 * std::size_t(q[i])], rest_[3 * std::size_t(q[i]) + 1], rest_[3 * std::size_t(q[i]) + 2]};
         const core::Vec3 g[4] = {cross(x[3] - x[1], x[2] - x[1]) / 6, cross(x[2] - x[0], x[3] - x[0]) / 6,
                                  cross(x[3] - x[0], x[1] - x[0]) / 6, cross(x[1] - x[0], x[2] - x[0]) / 6};
         double all = 0;
         for (const auto& gi : g)
             all += std::abs(gi.x) + std::abs(gi.y) + std::abs(gi.z);
-        for (int i = 0; i < 4; ++i)
+        for (std::size_t i = 0; i < 4; ++i)
             for (int c = 0; c < 3; ++c)
-                row[3 * q[i] + c] += tet_kv_[t] * std::abs(g[i][c]) * all;
+                row[3 * std::size_t(q[i]) + std::size_t(c)] += tet_kv_[t] * std::abs(g[i][c]) * all;
     }
     double lambda = 0;
     for (std::size_t i = 0; i < 3 * n; ++i)
-        lambda = std::max(lambda, row[i] * inv_mass_[i / 3]);
+        lambda = std::max(lambda, row[i] / mass_[i / 3]);
     dt_gershgorin_ = 2 / std::sqrt(lambda);
+    bounds_stale_ = false;
+}
+
+double Model::critical_time_step() const
+{
+    if (bounds_stale_)
+        update_bounds();
+    return dt_critical_;
+}
+double Model::gershgorin_time_step() const
+{
+    if (bounds_stale_)
+        update_bounds();
+    return dt_gershgorin_;
+}
+double Model::min_edge_length() const
+{
+    if (bounds_stale_)
+        update_bounds();
+    return min_edge_;
+}
+
+const std::vector<std::int32_t>& Model::surface_nodes() const
+{
+    if (surface_nodes_stale_) {
+        std::vector<char> on(mass_.size(), 0);
+        for (const auto& f : surface_faces_)
+            for (auto v : f)
+                on[std::size_t(v)] = 1;
+        surface_nodes_.clear();
+        for (std::size_t i = 0; i < on.size(); ++i)
+            if (on[i])
+                surface_nodes_.push_back(static_cast<std::int32_t>(i));
+        surface_nodes_stale_ = false;
+    }
+    return surface_nodes_;
 }
 
 double Model::total_mass() const
@@ -308,6 +357,7 @@ void Model::set_fixed(std::size_t i, bool fixed)
 {
     if (i >= mass_.size())
         throw core::InvalidInputError("mass-spring model: node " + std::to_string(i) + " does not exist");
+    fixed_[i] = fixed ? 1 : 0;
     inv_mass_[i] = fixed ? 0 : 1 / mass_[i];
 }
 
@@ -318,6 +368,7 @@ std::size_t Model::fix_box(const core::Vec3& lo, const core::Vec3& hi)
         const auto& p = mesh_.vertices[i];
         if (p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y && p.z >= lo.z && p.z <= hi.z) {
             inv_mass_[i] = 0;
+            fixed_[i] = 1;
             ++count;
         }
     }
@@ -341,44 +392,34 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
     double* F = f.data();
     double e_springs = 0;
 
-    // The hot loop: one pass over the springs grouped by their first node a (they are sorted),
-    // so a's position, velocity and force sum stay in registers for the group: only the second
-    // node's force goes through memory, and no store-to-load chain forms on a.
+    // The hot loop: one pass over the springs in their stored order (sorted by first node when
+    // built, so positions stream; grouping the first node's sums in registers measured no gain,
+    // docs/benchmarks.md, and a flat list lets edits append and remove springs).
+    const std::int32_t* sa = springs_.a.data();
     const std::int32_t* sb = springs_.b.data();
     const double* l0 = springs_.rest_length.data();
     const double* ks = params_.formulation == Formulation::MassSpring ? springs_.stiffness.data() : fem_k_.data();
     const double* cs = springs_.damping.data();
-    const std::int32_t* first = spring_first_.data();
-    for (std::size_t na = 0; na < n; ++na) {
-        const std::int32_t k0 = first[na], k1 = first[na + 1];
-        if (k0 == k1)
-            continue;
-        const std::size_t a = 3 * na;
-        const double xa = x[a], ya = x[a + 1], za = x[a + 2];
-        const double ua = v[a], va = v[a + 1], wa = v[a + 2];
-        double fx = 0, fy = 0, fz = 0, e = 0;
-        for (std::int32_t k = k0; k < k1; ++k) {
-            const std::size_t b = 3 * static_cast<std::size_t>(sb[k]);
-            const double dx = x[b] - xa, dy = x[b + 1] - ya, dz = x[b + 2] - za;
-            const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-            const double inv = 1 / l;
-            const double ext = l - l0[k];
-            const double vrel = ((v[b] - ua) * dx + (v[b + 1] - va) * dy + (v[b + 2] - wa) * dz) * inv;
-            // Positive magnitude pulls a towards b: a stretched or separating spring.
-            const double m = (ks[k] * ext + cs[k] * vrel) * inv;
-            fx += m * dx;
-            fy += m * dy;
-            fz += m * dz;
-            F[b] -= m * dx;
-            F[b + 1] -= m * dy;
-            F[b + 2] -= m * dz;
-            e += ks[k] * ext * ext;
-        }
-        F[a] += fx;
-        F[a + 1] += fy;
-        F[a + 2] += fz;
-        e_springs += 0.5 * e;
+    const std::size_t ns = springs_.size();
+    for (std::size_t k = 0; k < ns; ++k) {
+        const std::size_t a = 3 * static_cast<std::size_t>(sa[k]);
+        const std::size_t b = 3 * static_cast<std::size_t>(sb[k]);
+        const double dx = x[b] - x[a], dy = x[b + 1] - x[a + 1], dz = x[b + 2] - x[a + 2];
+        const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+        const double inv = 1 / l;
+        const double ext = l - l0[k];
+        const double vrel = ((v[b] - v[a]) * dx + (v[b + 1] - v[a + 1]) * dy + (v[b + 2] - v[a + 2]) * dz) * inv;
+        // Positive magnitude pulls a towards b: a stretched or separating spring.
+        const double m = (ks[k] * ext + cs[k] * vrel) * inv;
+        F[a] += m * dx;
+        F[a + 1] += m * dy;
+        F[a + 2] += m * dz;
+        F[b] -= m * dx;
+        F[b + 1] -= m * dy;
+        F[b + 2] -= m * dz;
+        e_springs += ks[k] * ext * ext;
     }
+    e_springs *= 0.5;
 
     double e_volume = 0;
     if (params_.stiffness == Stiffness::Havp && params_.volume_coefficient > 0) {

@@ -14,6 +14,8 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace lobe::mss {
@@ -121,8 +123,38 @@ struct Energy {
     double total() const { return kinetic + springs + volume + gravity; }
 };
 
-//! The mass-spring system. Built once from a mesh; rebuild it (and carry the state over by
-//! node index) when the topology changes.
+//! A vertex that a MeshEdit adds: a point of the segment between two vertices, in the rest
+//! shape and in the current state alike (a = b, t = 0: a copy of vertex a, as a cut needs).
+struct NewVertex {
+    std::int32_t a = 0, b = 0;
+    double t = 0; //!< (1 - t) a + t b, in [0, 1]
+};
+
+//! A local change of the mesh, applied by Model::apply in this order: the new vertices are
+//! appended (indices node_count(), node_count() + 1, ...); the removed tets go (the last tets
+//! move into their slots); the added tets are appended; the removed vertices go (the last
+//! vertices move into their slots). Cutting and refinement are built from such edits
+//! (lobe/mss/topology.h, docs/algorithms/instruments.md).
+struct MeshEdit {
+    std::vector<NewVertex> new_vertices;
+    std::vector<std::int32_t> removed_tets;
+    std::vector<std::array<std::int32_t, 4>> added_tets; //!< may refer to the new vertices
+    std::vector<std::int32_t> added_labels;              //!< one tissue label per added tet
+    std::vector<std::int32_t> removed_vertices;          //!< each must be in no tet after the edit
+};
+
+//! How Model::apply renumbered what it kept: (old index, new index) pairs in the order the
+//! moves happened (a later move may move an index that an earlier one produced).
+struct EditResult {
+    std::vector<std::pair<std::int32_t, std::int32_t>> moved_vertices;
+    std::vector<std::pair<std::int32_t, std::int32_t>> moved_tets;
+    std::int32_t first_new_vertex = 0; //!< index of the edit's first new vertex
+    std::int32_t first_new_tet = 0;    //!< index of the edit's first added tet (they are contiguous)
+};
+
+//! The mass-spring system, built from a mesh. Local mesh changes (cuts, refinement) go through
+//! apply(), which updates masses, springs, volume terms and the surface locally and carries the
+//! state over.
 class Model {
 public:
     //! \throw core::InvalidInputError if core::mesh_problem() rejects the mesh, a tet label has no
@@ -132,6 +164,8 @@ public:
     const ModelParams& params() const { return params_; }
     const core::TetMesh& mesh() const { return mesh_; }
     std::size_t node_count() const { return mass_.size(); }
+    //! Springs: sorted by (a, b) when built; edits append new springs and move the last spring
+    //! into the slot of a removed one.
     const Springs& springs() const { return springs_; }
     std::size_t tet_count() const { return mesh_.tets.size(); }
 
@@ -146,12 +180,12 @@ public:
 
     //! Fixes node i in place (a ligament attachment) or frees it.
     void set_fixed(std::size_t i, bool fixed);
-    bool is_fixed(std::size_t i) const { return inv_mass_[i] == 0; }
+    bool is_fixed(std::size_t i) const { return fixed_[i] != 0; }
     //! Fixes every node inside the box [lo, hi] (mm); returns how many.
     std::size_t fix_box(const core::Vec3& lo_mm, const core::Vec3& hi_mm);
 
     //! Nodes on the boundary (in a face that belongs to one tet only), ascending.
-    const std::vector<std::int32_t>& surface_nodes() const { return surface_nodes_; }
+    const std::vector<std::int32_t>& surface_nodes() const;
     //! Boundary faces, oriented outward.
     const std::vector<std::array<std::int32_t, 3>>& surface_faces() const { return surface_faces_; }
     //! The tet each boundary face belongs to.
@@ -171,28 +205,69 @@ public:
     //! Paloc's per-spring critical time step pi sqrt(m/k) with m the smaller node mass of the
     //! spring (the thesis's eq. 3.1 with this model's k), minimised over springs [s]. Without a
     //! safety factor: the symplectic Euler limit is lower (docs/algorithms/mass_spring.md).
-    double critical_time_step() const { return dt_critical_; }
+    //! Recomputed after edits.
+    double critical_time_step() const;
     //! A guaranteed bound for the linearised undamped system at rest: 2 / sqrt(max_i sum_j
     //! |K_ij| / m_i) (Gershgorin on M^-1 K, springs and volume terms) [s].
-    double gershgorin_time_step() const { return dt_gershgorin_; }
+    double gershgorin_time_step() const;
     //! Shortest rest edge [m].
-    double min_edge_length() const { return min_edge_; }
+    double min_edge_length() const;
+
+    // ---- local mesh changes ----------------------------------------------------------------
+
+    //! Builds the adjacency that apply() and vertex_tets() use (done by the first apply()
+    //! otherwise): tets per vertex, an edge table and a boundary face table, O(tets) once.
+    //! \throw core::InvalidInputError above 2^21 - 1 vertices (the face keys pack 21 bits each)
+    void enable_editing();
+    bool editing_enabled() const { return editing_; }
+    //! Tets around vertex v. \pre enable_editing() was called
+    const std::vector<std::int32_t>& vertex_tets(std::int32_t v) const { return vertex_tets_[std::size_t(v)]; }
+
+    //! Applies a local edit: new vertices get their rest position, position and velocity
+    //! interpolated (a vertex is fixed if both parents are); masses, springs (stiffness from the
+    //! tets around each edge, damping from the masses), volume terms and boundary faces are
+    //! updated for the touched tets, edges and nodes only; the time step bounds follow. `state`
+    //! (of this model) is carried over and stays valid.
+    //! \throw core::InvalidInputError for an index out of range, a repeated removal, an added tet
+    //!        without material, with a repeated vertex or not positively oriented in the rest
+    //!        shape, a vertex left without tets and not removed, or a removed vertex still in a
+    //!        tet; the model and the state are then unchanged
+    EditResult apply(const MeshEdit& edit, State& state);
 
 private:
     void build();
+    void set_tet(std::size_t t);              // material, V0, volume and FEM terms of tet t
+    void set_spring(std::size_t k);           // stiffness and damping of spring k from its sums
+    void update_bounds() const;               // time step bounds and shortest edge
+    void add_tet_terms(std::size_t t, double sign, std::vector<std::uint64_t>& edges,
+                       std::vector<std::int32_t>& nodes);
+    void update_faces(const std::array<std::int32_t, 4>& q, std::vector<std::uint64_t>& faces) const;
+    void refresh_face(std::uint64_t key);
+    void remove_spring(std::size_t k);
 
     core::TetMesh mesh_;
     ModelParams params_;
     std::vector<double> rest_, mass_, inv_mass_;
+    std::vector<char> fixed_;
     Springs springs_;
-    std::vector<std::int32_t> spring_first_; // springs of first node a: [first[a], first[a+1])
-    std::vector<double> tet_e_, tet_v0_, tet_kv_;
+    std::vector<double> tet_e_, tet_v0_, tet_kv_, tet_density_;
     std::vector<double> fem_k_;      // FEM: zero spring stiffness (the springs only damp)
     std::vector<double> tet_dm_inv_; // FEM: 9 per tet, the inverse rest edge matrix, row-major
-    std::vector<std::int32_t> surface_nodes_;
     std::vector<std::array<std::int32_t, 3>> surface_faces_;
     std::vector<std::int32_t> surface_face_tets_;
-    double dt_critical_ = 0, dt_gershgorin_ = 0, min_edge_ = 0;
+    mutable std::vector<std::int32_t> surface_nodes_;
+    mutable bool surface_nodes_stale_ = false;
+    mutable double dt_critical_ = 0, dt_gershgorin_ = 0, min_edge_ = 0;
+    mutable bool bounds_stale_ = false;
+
+    // Editing (enable_editing): per spring the sums its stiffness law needs over the tets around
+    // its edge; edge and boundary-face tables keyed by packed vertex indices.
+    bool editing_ = false;
+    std::vector<std::vector<std::int32_t>> vertex_tets_;
+    std::vector<double> spring_sum_e_, spring_sum_ev_;
+    std::vector<std::int32_t> spring_count_;
+    std::unordered_map<std::uint64_t, std::int32_t> edge_slot_; // edge -> spring
+    std::unordered_map<std::uint64_t, std::int32_t> face_slot_; // boundary face -> surface_faces_ slot
 };
 
 } // namespace lobe::mss
