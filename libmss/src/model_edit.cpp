@@ -435,4 +435,25 @@ EditResult Model::apply(const MeshEdit& e, State& st)
     return result;
 }
 
+core::Vec3 Model::boundary_normal(std::int32_t v, const State& s) const
+{
+    core::Vec3 n{0, 0, 0};
+    for (auto t : vertex_tets_[std::size_t(v)]) {
+        const auto& q = mesh_.tets[std::size_t(t)];
+        for (const auto& f : kTetFaces) {
+            const std::array<std::int32_t, 3> g{q[std::size_t(f[0])], q[std::size_t(f[1])], q[std::size_t(f[2])]};
+            if (g[0] != v && g[1] != v && g[2] != v)
+                continue;
+            const auto it = face_slot_.find(face_key(g[0], g[1], g[2]));
+            if (it == face_slot_.end() || surface_face_tets_[std::size_t(it->second)] != t)
+                continue;
+            const core::Vec3 p0 = s.position_mm(std::size_t(g[0])), p1 = s.position_mm(std::size_t(g[1])),
+                             p2 = s.position_mm(std::size_t(g[2]));
+            n += cross(p1 - p0, p2 - p0); // twice the area, outward (kTetFaces orientation)
+        }
+    }
+    const double l = norm(n);
+    return l > 0 ? n / l : core::Vec3{0, 0, 0};
+}
+
 } // namespace lobe::mss

@@ -1,14 +1,18 @@
 // Time integration, the time step policy, blow-up detection and probe contact.
 #include "lobe/mss/simulator.h"
 
+#include "detail/cutting.h"
 #include "detail/implicit.h"
 #include "lobe/core/errors.h"
+#include "lobe/mss/topology.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <optional>
+#include <unordered_set>
 
 namespace lobe::mss {
 namespace {
@@ -73,7 +77,25 @@ struct Simulator::Impl {
     State state;
     std::vector<ProbeParams> probes;
     std::vector<double> force, force_next, dv, v_old, v_pred;
-    std::vector<int> touched; // per node: the index + 1 of the probe that moved it this step
+    std::vector<int> touched; // per node: the index + 1 of the probe that moved it this step (-1: held)
+    // Forceps: whether the jaws are closed (or have opened again), what they hold and where.
+    struct Grasp {
+        GraspParams params;
+        bool closed = false, opened = false;
+        std::vector<std::int32_t> held;
+        std::vector<core::Vec3> offset; // held node - jaw centre at closing [mm]
+    };
+    std::vector<Grasp> grasps;
+    std::vector<GraspParams> grasp_params;
+    std::vector<BladeParams> blade_params;
+    std::vector<detail::BladeState> blades;
+    detail::Cutting cutting;
+    struct Split {
+        std::int32_t a, b, m; // edge a-b bisected at m
+    };
+    std::vector<Split> splits; // refinement bisections not yet undone, oldest first
+    double next_topology = 0;
+    double mean_edge_mm = 0, d_min_mm = 0;
     Energy energy; // of `state`
     double dt = 0, dt_max = 0, dt_floor = 0, dt_cap = 0;
     double tolerance = 0, energy_floor = 0;
@@ -112,8 +134,13 @@ struct Simulator::Impl {
         const auto& ts = params.time_step;
         const double crit = model.critical_time_step();
         dt_max = ts.max_factor * crit;
-        dt_floor = ts.floor_factor * crit;
+        dt_floor = ts.floor_factor * crit; // fixed for the run: topology changes may not lower it
         dt_cap = dt_max;
+        double sum = 0;
+        for (double l : model.springs().rest_length)
+            sum += l;
+        mean_edge_mm = 1e3 * sum / double(model.springs().size());
+        d_min_mm = 0.5e3 * model.min_edge_length();
         switch (ts.policy) {
         case StepPolicy::Fixed: dt = ts.dt; break;
         case StepPolicy::Critical: dt = ts.safety * crit; break;
@@ -131,6 +158,259 @@ struct Simulator::Impl {
     }
 
     void evaluate(const State& s, std::vector<double>& f, Energy& e) const { model.forces(s, f, &e); }
+
+    // After a cut or a refinement: the step bounds follow the new elements (the floor does not),
+    // the implicit solver re-analyses its pattern, and the changed state becomes the good one.
+    void after_topology_change()
+    {
+        const auto& ts = params.time_step;
+        const double crit = model.critical_time_step();
+        dt_max = ts.max_factor * crit;
+        dt_cap = dt_max;
+        if (ts.policy == StepPolicy::Critical)
+            dt = std::max(dt_floor, ts.safety * crit);
+        else if (ts.policy == StepPolicy::Adaptive)
+            dt = std::max(dt_floor, std::min(dt, ts.safety * crit));
+        tolerance = ts.tolerance * model.min_edge_length();
+        if (params.integrator == Integrator::BackwardEuler)
+            implicit = std::make_unique<detail::ImplicitSolver>(model, params);
+        if (!blades.empty())
+            cutting.refresh_lips(model);
+        evaluate(state, force, energy);
+        checkpoint();
+    }
+
+    // Follows the renumbering of a coarsening merge in everything that names vertices.
+    void renumber(const std::vector<std::pair<std::int32_t, std::int32_t>>& moved)
+    {
+        for (const auto& [from, to] : moved) {
+            for (auto& sp : splits)
+                for (auto* x : {&sp.a, &sp.b, &sp.m})
+                    if (*x == from)
+                        *x = to;
+            for (auto& g : grasps)
+                for (auto& h : g.held)
+                    if (h == from)
+                        h = to;
+        }
+        cutting.renumber(moved, blades);
+    }
+
+    // Distance from p to the nearest instrument, in units of that instrument's reach (its radius
+    // or the blade's edge, plus the refinement margin): < 1 inside the refinement region.
+    double reach_ratio(const core::Vec3& p, double t) const
+    {
+        const double margin = params.refine.margin_mm > 0 ? params.refine.margin_mm : 2 * mean_edge_mm;
+        double best = std::numeric_limits<double>::infinity();
+        for (const auto& pr : probes)
+            best = std::min(best, norm(p - probe_position(pr, t)) / (pr.radius_mm + margin));
+        for (const auto& g : grasps)
+            best = std::min(best, norm(p - grasp_position(g.params, t)) / (g.params.jaw_radius_mm + margin));
+        for (const auto& b : blades) {
+            const auto [a, e] = blade_position(b.params, t);
+            const core::Vec3 d = e - a;
+            const double w = std::clamp(dot(p - a, d) / std::max(dot(d, d), 1e-300), 0.0, 1.0);
+            best = std::min(best, norm(p - (a + d * w)) / margin);
+        }
+        return best;
+    }
+
+    // Refinement by bisection around the instruments, and the undoing of bisections (newest
+    // first) once every instrument has left (docs/algorithms/instruments.md, "Refinement").
+    bool refine_update()
+    {
+        const RefineParams& rp = params.refine;
+        const double t = state.time;
+        const double target = rp.edge_mm > 0 ? rp.edge_mm : 0.5 * mean_edge_mm;
+        const double d_min = rp.min_edge_mm > 0 ? rp.min_edge_mm : d_min_mm;
+        bool changed = false;
+        // Coarsen: undo bisections whose midpoint no instrument is near any more.
+        for (std::size_t i = splits.size(); i-- > 0;) {
+            const Split sp = splits[i];
+            if (reach_ratio(state.position_mm(std::size_t(sp.m)), t) < rp.coarsen_factor)
+                continue;
+            bool held = false;
+            for (const auto& g : grasps)
+                held = held || std::find(g.held.begin(), g.held.end(), sp.m) != g.held.end();
+            if (held || cutting.on_cut(sp.m))
+                continue;
+            std::vector<std::pair<std::int32_t, std::int32_t>> moved;
+            if (!merge_split(model, state, sp.m, sp.a, sp.b, &moved))
+                continue; // its tets were split further (a later bisection still stands) or cut
+            splits.erase(splits.begin() + std::ptrdiff_t(i));
+            renumber(moved);
+            ++stats.coarsen_merges;
+            changed = true;
+        }
+        // Refine: the longest rest edges in the region first.
+        model.enable_editing();
+        std::vector<char> inside(model.node_count(), 0);
+        for (std::size_t v = 0; v < model.node_count(); ++v)
+            inside[v] = reach_ratio(state.position_mm(v), t) < 1;
+        struct Candidate {
+            double length;
+            std::int32_t a, b;
+        };
+        std::vector<Candidate> cand;
+        std::unordered_set<std::uint64_t> seen;
+        const auto& rest = model.mesh().vertices;
+        for (std::size_t v = 0; v < model.node_count(); ++v) {
+            if (!inside[v])
+                continue;
+            for (auto tt : model.vertex_tets(std::int32_t(v)))
+                for (auto w : model.mesh().tets[std::size_t(tt)]) {
+                    const auto a = std::min(std::int32_t(v), w), b = std::max(std::int32_t(v), w);
+                    if (a == b || !seen.insert((std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b)).second)
+                        continue;
+                    const double l = norm(rest[std::size_t(b)] - rest[std::size_t(a)]);
+                    if (l > target && !(cutting.on_cut(a) && cutting.on_cut(b)))
+                        cand.push_back({l, a, b});
+                }
+        }
+        std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
+            return x.length != y.length ? x.length > y.length : std::tie(x.a, x.b) < std::tie(y.a, y.b);
+        });
+        int done = 0;
+        for (const auto& c : cand) {
+            if (done >= rp.max_splits)
+                break;
+            const auto ring = tets_around_edge(model, c.a, c.b);
+            if (ring.empty() || c.length / 2 < d_min)
+                continue;
+            const core::Vec3 mid_rest = (rest[std::size_t(c.a)] + rest[std::size_t(c.b)]) / 2;
+            const core::Vec3 mid_now = (state.position_mm(std::size_t(c.a)) + state.position_mm(std::size_t(c.b))) / 2;
+            bool ok = true;
+            for (auto r : ring) {
+                const auto& q = model.mesh().tets[std::size_t(r)];
+                for (auto w : q)
+                    if (w != c.a && w != c.b && norm(rest[std::size_t(w)] - mid_rest) < d_min)
+                        ok = false;
+                if (ok && rp.quality) {
+                    // Both halves, in the rest shape and as deformed now.
+                    for (int half = 0; half < 2 && ok; ++half) {
+                        std::array<core::Vec3, 4> pr{}, pc{};
+                        for (std::size_t i = 0; i < 4; ++i) {
+                            const bool swap = q[i] == (half == 0 ? c.b : c.a);
+                            pr[i] = swap ? mid_rest : rest[std::size_t(q[i])];
+                            pc[i] = swap ? mid_now : state.position_mm(std::size_t(q[i]));
+                        }
+                        ok = rp.quality(pr[0], pr[1], pr[2], pr[3]) >= rp.min_quality &&
+                             rp.quality(pc[0], pc[1], pc[2], pc[3]) >= rp.min_quality;
+                    }
+                }
+                if (!ok)
+                    break;
+            }
+            if (!ok)
+                continue;
+            const auto m = split_edge(model, state, c.a, c.b, 0.5);
+            splits.push_back({c.a, c.b, m});
+            ++stats.refine_splits;
+            ++done;
+            changed = true;
+        }
+        return changed;
+    }
+
+    // Cuts, refinement and coarsening at the current time; returns whether the mesh changed.
+    bool topology_update()
+    {
+        const auto t0 = std::chrono::steady_clock::now();
+        bool changed = false;
+        for (auto& b : blades) {
+            if (b.d_min_mm == 0)
+                b.d_min_mm = b.params.min_edge_mm > 0 ? b.params.min_edge_mm : b.params.snap * 2 * d_min_mm;
+            const detail::CutReport r = cutting.cut(model, state, b, state.time);
+            stats.cut_splits += r.splits;
+            stats.cut_snaps += r.snapped;
+            stats.cut_separations += r.separated;
+            changed = changed || r.changed();
+        }
+        if (params.refine.enabled)
+            changed = refine_update() || changed;
+        ++stats.topology_updates;
+        if (changed) {
+            ++stats.topology_changes;
+            after_topology_change();
+        }
+        const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        stats.topology_seconds += secs;
+        stats.max_topology_seconds = std::max(stats.max_topology_seconds, secs);
+        return changed;
+    }
+
+    // Forceps: close (take the free surface nodes within reach) and open at their times.
+    void update_grasps(double t)
+    {
+        for (auto& g : grasps) {
+            if (!g.closed && !g.opened && t >= g.params.close_time && t < g.params.open_time) {
+                g.closed = true;
+                const core::Vec3 c = grasp_position(g.params, t);
+                for (const auto v : model.surface_nodes())
+                    if (!model.is_fixed(std::size_t(v)) && norm(state.position_mm(std::size_t(v)) - c) <= g.params.jaw_radius_mm) {
+                        g.held.push_back(v);
+                        g.offset.push_back(state.position_mm(std::size_t(v)) - c);
+                    }
+            }
+            if (g.closed && t >= g.params.open_time) {
+                g.closed = false;
+                g.opened = true;
+                g.held.clear();
+                g.offset.clear();
+            }
+        }
+    }
+
+    // Moves the held nodes with the jaws (position and velocity) at the state's time.
+    void hold(State& s, double h)
+    {
+        for (auto& g : grasps) {
+            const core::Vec3 c = grasp_position(g.params, s.time) * 1e-3;
+            const core::Vec3 vc = (c - grasp_position(g.params, s.time - h) * 1e-3) / h;
+            for (std::size_t k = 0; k < g.held.size(); ++k) {
+                const auto i = std::size_t(g.held[k]);
+                const core::Vec3 target = c + g.offset[k] * 1e-3;
+                for (std::size_t d = 0; d < 3; ++d) {
+                    s.x[3 * i + d] = target[int(d)];
+                    s.v[3 * i + d] = vc[int(d)];
+                }
+                if (!touched.empty())
+                    touched[i] = -1;
+            }
+        }
+    }
+
+    // The force of the held tissue on the jaws (the forces on the held nodes, which the jaws
+    // cancel); above the jaws' limit the most loaded node slips out, until the rest is held.
+    core::Vec3 grasp_reaction(const std::vector<double>& f)
+    {
+        core::Vec3 total{0, 0, 0};
+        for (auto& g : grasps) {
+            core::Vec3 sum{0, 0, 0};
+            for (auto i : g.held)
+                sum += core::Vec3{f[3 * std::size_t(i)], f[3 * std::size_t(i) + 1], f[3 * std::size_t(i) + 2]};
+            while (!g.held.empty() && norm(sum) > g.params.max_force_n) {
+                const core::Vec3 dir = normalized(sum);
+                std::size_t worst = 0;
+                double load = -std::numeric_limits<double>::infinity();
+                for (std::size_t k = 0; k < g.held.size(); ++k) {
+                    const auto i = std::size_t(g.held[k]);
+                    const double l = f[3 * i] * dir.x + f[3 * i + 1] * dir.y + f[3 * i + 2] * dir.z;
+                    if (l > load) {
+                        load = l;
+                        worst = k;
+                    }
+                }
+                const auto i = std::size_t(g.held[worst]);
+                sum -= core::Vec3{f[3 * i], f[3 * i + 1], f[3 * i + 2]};
+                g.held.erase(g.held.begin() + std::ptrdiff_t(worst));
+                g.offset.erase(g.offset.begin() + std::ptrdiff_t(worst));
+                ++stats.grasp_slips;
+            }
+            total += sum;
+        }
+        return total;
+    }
 
     void checkpoint()
     {
@@ -214,6 +494,16 @@ struct Simulator::Impl {
         }
     }
 
+    // The position constraints after the integrator's update: forceps hold their nodes, and
+    // the lips of cuts are kept from passing each other.
+    void constrain(State& s, double h)
+    {
+        if (!grasps.empty())
+            hold(s, h);
+        if (!cutting.lips().empty())
+            stats.lip_corrections += cutting.keep_apart(model, s);
+    }
+
     // One step of size h from `state`, with `force` = forces at `state`. Leaves the new state,
     // its forces and energy; returns the error estimate.
     double integrate(double h, StepInfo& info)
@@ -223,7 +513,7 @@ struct Simulator::Impl {
         // In place: a blow-up goes back to the checkpoint, so the old state is not needed.
         State& next = state;
         next.time = state.time + h;
-        if (!probes.empty())
+        if (!probes.empty() || !grasps.empty())
             touched.assign(n, 0);
         core::Vec3 reaction{0, 0, 0};
         int contacts = 0;
@@ -241,6 +531,7 @@ struct Simulator::Impl {
             }
             if (!probes.empty())
                 contacts = contact(next, h, reaction, touched, probe_work);
+            constrain(next, h);
             evaluate(next, force_next, e_next);
             break;
         case Integrator::VelocityVerlet: {
@@ -251,14 +542,16 @@ struct Simulator::Impl {
                     x[k] += h * v[k] + 0.5 * h * h * a;
                     v[k] += h * a; // predicted, for the damping forces
                 }
-            if (!probes.empty()) {
+            v_pred.clear();
+            if (!probes.empty() || !grasps.empty() || !cutting.lips().empty()) {
                 v_pred = next.v;
                 contacts = contact(next, h, reaction, touched, probe_work);
+                constrain(next, h);
             }
             model.forces(next, force_next, &e_next);
             for (std::size_t i = 0; i < n; ++i)
                 for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
-                    const double correction = probes.empty() ? 0 : v[k] - v_pred[k];
+                    const double correction = v_pred.empty() ? 0 : v[k] - v_pred[k];
                     v[k] = v_old[k] + 0.5 * h * (force[k] + force_next[k]) * inv[i] + correction;
                 }
             e_next.kinetic = 0;
@@ -282,6 +575,7 @@ struct Simulator::Impl {
                 contacts = contact(next, h, reaction, touched, ignored);
                 reaction = {0, 0, 0};
             }
+            constrain(next, h);
             evaluate(next, force_next, e_next);
             if (contacts > 0)
                 implicit_reaction(next, h, force_next, touched, reaction, probe_work);
@@ -289,7 +583,13 @@ struct Simulator::Impl {
             break;
         }
         }
-        // Error estimate: dt^2/2 |a(t+h) - a(t)|, over free nodes the probes did not move.
+        if (!grasps.empty()) {
+            info.grasp_force = grasp_reaction(force_next);
+            reaction += info.grasp_force;
+            for (const auto& g : grasps)
+                info.held += int(g.held.size());
+        }
+        // Error estimate: dt^2/2 |a(t+h) - a(t)|, over free nodes the instruments did not move.
         // The same pass finds the fastest node for the blow-up check.
         double err = 0, vmax2 = 0;
         for (std::size_t i = 0; i < n; ++i) {
@@ -341,10 +641,18 @@ struct Simulator::Impl {
     StepInfo step(double h_limit, bool landing)
     {
         const bool adaptive = params.time_step.policy == StepPolicy::Adaptive;
+        bool topology_changed = false;
+        if ((!blades.empty() || params.refine.enabled) && state.time >= next_topology - 1e-12) {
+            topology_changed = topology_update();
+            next_topology = state.time + params.topology_interval;
+        }
+        if (!grasps.empty())
+            update_grasps(state.time);
         for (;;) {
             double h = std::min(dt, h_limit);
             StepInfo info;
             info.at_floor = adaptive && dt <= dt_floor;
+            info.topology_changed = topology_changed;
             // A step that lands on a requested time (an output frame) is checked in full and
             // becomes the last good state, so what is written out never has to be taken back.
             const double err = integrate(h, info);
@@ -430,6 +738,31 @@ std::size_t Simulator::add_probe(const ProbeParams& probe)
     return impl_->probes.size() - 1;
 }
 
+std::size_t Simulator::add_grasp(const GraspParams& grasp)
+{
+    validate_grasp(grasp);
+    Impl::Grasp g;
+    g.params = grasp;
+    impl_->grasps.push_back(g);
+    impl_->grasp_params.push_back(grasp);
+    return impl_->grasps.size() - 1;
+}
+const std::vector<GraspParams>& Simulator::grasps() const { return impl_->grasp_params; }
+const std::vector<std::int32_t>& Simulator::held_nodes(std::size_t g) const { return impl_->grasps.at(g).held; }
+
+std::size_t Simulator::add_blade(const BladeParams& blade)
+{
+    validate_blade(blade);
+    detail::BladeState b;
+    b.params = blade;
+    impl_->blades.push_back(b);
+    impl_->blade_params.push_back(blade);
+    impl_->next_topology = impl_->state.time; // the blade's first pose is taken at the next step
+    return impl_->blades.size() - 1;
+}
+const std::vector<BladeParams>& Simulator::blades() const { return impl_->blade_params; }
+const std::vector<std::array<std::int32_t, 3>>& Simulator::cut_faces() const { return impl_->cutting.lips(); }
+
 StepInfo Simulator::step() { return impl_->step(std::numeric_limits<double>::infinity(), false); }
 
 StepInfo Simulator::step_until(double t_end)
@@ -486,6 +819,76 @@ void validate_probe(const ProbeParams& p)
         if (i > 0 && !(q.time > p.path[i - 1].time))
             throw core::InvalidInputError(what + ": path times must increase (point " + std::to_string(i + 1) + ")");
     }
+}
+
+namespace {
+
+template <class P> void check_times(const std::string& what, const std::vector<P>& path)
+{
+    if (path.empty())
+        throw core::InvalidInputError(what + ": the path has no point");
+    for (std::size_t i = 1; i < path.size(); ++i)
+        if (!(path[i].time > path[i - 1].time))
+            throw core::InvalidInputError(what + ": path times must increase (point " + std::to_string(i + 1) + ")");
+}
+
+bool finite(const core::Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+// Linear interpolation along a path of timed points, clamped at both ends.
+template <class P, class F> auto along(const std::vector<P>& path, double t, F get)
+{
+    if (t <= path.front().time)
+        return get(path.front());
+    for (std::size_t i = 1; i < path.size(); ++i)
+        if (t <= path[i].time) {
+            const double w = (t - path[i - 1].time) / (path[i].time - path[i - 1].time);
+            return get(path[i - 1]) * (1 - w) + get(path[i]) * w;
+        }
+    return get(path.back());
+}
+
+} // namespace
+
+void validate_grasp(const GraspParams& g)
+{
+    const std::string what = "forceps '" + g.name + "'";
+    check_times(what, g.path);
+    for (std::size_t i = 0; i < g.path.size(); ++i)
+        if (!std::isfinite(g.path[i].time) || !finite(g.path[i].position_mm))
+            throw core::InvalidInputError(what + ": path point " + std::to_string(i + 1) + " is not finite");
+    if (!(g.jaw_radius_mm > 0) || !std::isfinite(g.jaw_radius_mm))
+        throw core::InvalidInputError(what + ": the jaw radius must be positive");
+    if (!(g.max_force_n > 0) || !std::isfinite(g.max_force_n))
+        throw core::InvalidInputError(what + ": the maximum force must be positive");
+    if (!std::isfinite(g.close_time) || std::isnan(g.open_time) || !(g.open_time > g.close_time))
+        throw core::InvalidInputError(what + ": the jaws must open after they close");
+}
+
+void validate_blade(const BladeParams& b)
+{
+    const std::string what = "blade '" + b.name + "'";
+    check_times(what, b.path);
+    for (std::size_t i = 0; i < b.path.size(); ++i) {
+        const auto& q = b.path[i];
+        if (!std::isfinite(q.time) || !finite(q.a_mm) || !finite(q.b_mm))
+            throw core::InvalidInputError(what + ": pose " + std::to_string(i + 1) + " is not finite");
+        if (!(norm(q.b_mm - q.a_mm) > 0))
+            throw core::InvalidInputError(what + ": pose " + std::to_string(i + 1) + " has a zero-length edge");
+    }
+    if (!(b.snap > 0 && b.snap < 0.5))
+        throw core::InvalidInputError(what + ": snap must lie in (0, 0.5)");
+    if (!(b.min_edge_mm >= 0) || !std::isfinite(b.min_edge_mm))
+        throw core::InvalidInputError(what + ": min_edge must not be negative");
+}
+
+std::pair<core::Vec3, core::Vec3> blade_position(const BladeParams& b, double t)
+{
+    return {along(b.path, t, [](const BladePose& p) { return p.a_mm; }), along(b.path, t, [](const BladePose& p) { return p.b_mm; })};
+}
+
+core::Vec3 grasp_position(const GraspParams& g, double t)
+{
+    return along(g.path, t, [](const PathPoint& p) { return p.position_mm; });
 }
 
 } // namespace lobe::mss

@@ -234,6 +234,11 @@ public:
     //!        tet; the model and the state are then unchanged
     EditResult apply(const MeshEdit& edit, State& state);
 
+    //! Unit outward normal of the boundary around vertex v in state s: the area-weighted mean of
+    //! the normals of the boundary faces holding v; zero for an interior vertex.
+    //! \pre editing_enabled()
+    core::Vec3 boundary_normal(std::int32_t v, const State& s) const;
+
 private:
     void build();
     void set_tet(std::size_t t);              // material, V0, volume and FEM terms of tet t
