@@ -107,7 +107,7 @@ struct Simulator::Impl {
     Energy good_energy;
     std::int64_t steps_since_check = 0;
     double max_speed2 = 0; // squared speed of the fastest node after the last step
-    double probe_work = 0; // work of the probes on the tissue since the last good state [J]
+    double probe_work = 0; // work of the instruments on the tissue since the last good state [J]
 
     Impl(Model m, const SimulatorParams& p) : model(std::move(m)), params(p)
     {
@@ -382,10 +382,13 @@ struct Simulator::Impl {
 
     // The force of the held tissue on the jaws (the forces on the held nodes, which the jaws
     // cancel); above the jaws' limit the most loaded node slips out, until the rest is held.
-    core::Vec3 grasp_reaction(const std::vector<double>& f)
+    core::Vec3 grasp_reaction(const std::vector<double>& f, double t, double h)
     {
         core::Vec3 total{0, 0, 0};
         for (auto& g : grasps) {
+            // The jaws' work on the tissue this step: they hold each node against f_i while
+            // moving it with them.
+            const core::Vec3 step = (grasp_position(g.params, t) - grasp_position(g.params, t - h)) * 1e-3;
             core::Vec3 sum{0, 0, 0};
             for (auto i : g.held)
                 sum += core::Vec3{f[3 * std::size_t(i)], f[3 * std::size_t(i) + 1], f[3 * std::size_t(i) + 2]};
@@ -407,6 +410,7 @@ struct Simulator::Impl {
                 g.offset.erase(g.offset.begin() + std::ptrdiff_t(worst));
                 ++stats.grasp_slips;
             }
+            probe_work -= dot(sum, step);
             total += sum;
         }
         return total;
@@ -584,7 +588,7 @@ struct Simulator::Impl {
         }
         }
         if (!grasps.empty()) {
-            info.grasp_force = grasp_reaction(force_next);
+            info.grasp_force = grasp_reaction(force_next, next.time, h);
             reaction += info.grasp_force;
             for (const auto& g : grasps)
                 info.held += int(g.held.size());
@@ -685,8 +689,10 @@ struct Simulator::Impl {
                 ++stats.floor_hits;
             if (adaptive && h == dt) {
                 if (err > tolerance) {
+                    // A large error (an instrument starting to move, a contact) shortens the
+                    // step; it grows back by 5 % a step once the error is small again. Only a
+                    // blow-up lowers the cap for good.
                     ++stats.step_cuts;
-                    dt_cap = std::min(dt_cap, std::max(dt_floor, 0.8 * dt));
                     dt = std::max(dt_floor, dt * std::max(0.5, 0.9 * std::sqrt(tolerance / err)));
                 } else if (err < 0.25 * tolerance) {
                     dt = std::min(dt * 1.05, dt_cap);
