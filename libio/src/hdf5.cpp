@@ -859,9 +859,11 @@ struct Hdf5Writer::Impl {
     std::set<std::string> names[4]; // images, labels, surfaces, meshes
     int next_record = 0;
     struct Simulation {
-        std::size_t nodes = 0;
-        std::size_t xdmf = 0; // index into xdmf.simulations
+        std::size_t nodes = 0;  // vertices per frame in the current epoch
+        std::size_t xdmf = 0;   // index into xdmf.simulations
         double last_time = -std::numeric_limits<double>::infinity();
+        std::size_t frames = 0; // written so far, all epochs
+        std::string positions = "positions"; // of the current epoch, relative to the group
     };
     std::map<std::string, Simulation> simulations;
     bool closed = false;
@@ -1185,8 +1187,10 @@ void Hdf5Writer::begin_simulation(const std::string& name, const std::string& me
             create_extendible<double>(steps.get(), d, {0}, {4096}, m.params, where + "/steps/" + d);
         create_extendible<double>(steps.get(), "force", {0, 3}, {4096, 3}, m.params, where + "/steps/force");
     });
-    m.simulations[name] = {n, m.xdmf.simulations.size(), -std::numeric_limits<double>::infinity()};
-    m.xdmf.simulations.push_back({name, *it, {}});
+    m.simulations[name] = {n, m.xdmf.simulations.size(), -std::numeric_limits<double>::infinity(), 0, "positions"};
+    detail::XdmfEpoch first{"/simulation/" + name + "/positions", "/meshes/" + mesh + "/tets", "/meshes/" + mesh + "/tet_labels",
+                            it->vertices, it->tets, 0, 0};
+    m.xdmf.simulations.push_back({name, *it, {}, {first}});
 }
 
 void Hdf5Writer::append_frame(const std::string& name, double time, const std::vector<core::Vec3>& positions)
@@ -1205,11 +1209,56 @@ void Hdf5Writer::append_frame(const std::string& name, double time, const std::v
     check_finite(positions, where + "/positions");
     m.guarded([&] {
         Group g(ok_id(H5Gopen2(m.h.get(), ("simulation/" + name).c_str(), H5P_DEFAULT), where));
-        append_rows(g.get(), "positions", reinterpret_cast<const double*>(positions.data()), 1, where + "/positions");
+        append_rows(g.get(), it->second.positions, reinterpret_cast<const double*>(positions.data()), 1,
+                    where + "/" + it->second.positions);
         append_rows(g.get(), "times", &time, 1, where + "/times");
     });
     it->second.last_time = time;
-    m.xdmf.simulations[it->second.xdmf].times.push_back(time);
+    ++it->second.frames;
+    auto& x = m.xdmf.simulations[it->second.xdmf];
+    x.times.push_back(time);
+    ++x.epochs.back().frames;
+}
+
+void Hdf5Writer::begin_topology(const std::string& name, const core::TetMesh& mesh)
+{
+    Impl& m = impl();
+    m.require_open();
+    const auto it = m.simulations.find(name);
+    if (it == m.simulations.end())
+        throw InvalidInputError(m.file + ": begin_topology of simulation '" + name + "', which was not begun");
+    auto& x = m.xdmf.simulations[it->second.xdmf];
+    const std::size_t k = x.epochs.size();
+    char id[32];
+    std::snprintf(id, sizeof id, "%03zu", k);
+    const std::string rel = std::string("epochs/") + id;
+    const std::string where = m.what("/simulation/" + name + "/" + rel);
+    if (const std::string problem = core::mesh_problem(mesh); !problem.empty())
+        throw InvalidInputError(where + ": " + problem);
+    if (mesh.vertices.size() > kMaxMeshElements || mesh.tets.size() > kMaxMeshElements)
+        throw InvalidInputError(where + ": mesh exceeds the limit of " + std::to_string(kMaxMeshElements) + " elements");
+    check_finite(mesh.vertices, where);
+    const std::size_t n = mesh.vertices.size(), t = mesh.tets.size();
+    m.guarded([&] {
+        Group g(ok_id(H5Gopen2(m.h.get(), ("simulation/" + name).c_str(), H5P_DEFAULT), m.what("/simulation/" + name)));
+        Group epochs = has_link(g.get(), "epochs") ? open_group(g.get(), "epochs", where) : create_group(g.get(), "epochs", where);
+        Group e = create_group(epochs.get(), id, where);
+        write_scalar_attr(e.get(), "first_frame", double(it->second.frames), where);
+        Dataset v = write_dataset(e.get(), "rest_vertices", {n, 3}, {row_chunk(n, 24), 3},
+                                  reinterpret_cast<const double*>(mesh.vertices.data()), m.params, where + "/rest_vertices");
+        write_string_attr(v.get(), "units", "mm", where + "/rest_vertices");
+        write_dataset(e.get(), "tets", {t, 4}, {row_chunk(t, 16), 4}, reinterpret_cast<const std::int32_t*>(mesh.tets.data()),
+                      m.params, where + "/tets");
+        write_dataset(e.get(), "tet_labels", {t}, {row_chunk(t, 4)}, mesh.tet_labels.data(), m.params, where + "/tet_labels");
+        const hsize_t rows = std::max<hsize_t>(1, std::min<hsize_t>(n, kChunkBytes / 24));
+        Dataset pos = create_extendible<double>(e.get(), "positions", {0, std::max<hsize_t>(n, 1), 3}, {1, rows, 3}, m.params,
+                                                where + "/positions");
+        write_string_attr(pos.get(), "units", "mm", where + "/positions");
+    });
+    it->second.nodes = n;
+    it->second.positions = rel + "/positions";
+    const std::string base = "/simulation/" + name + "/" + rel;
+    x.epochs.push_back({base + "/positions", base + "/tets", base + "/tet_labels", n, t, it->second.frames, 0});
 }
 
 void Hdf5Writer::append_steps(const std::string& name, const std::vector<SimulationStep>& steps)
@@ -1441,6 +1490,52 @@ constexpr std::size_t kMaxSimulationRows = std::size_t(1) << 28;
 
 } // namespace
 
+namespace {
+
+// The frames of one topology of a simulation (docs/file-format.md, section 1.9): epoch 0 is
+// /simulation/<name>/positions on /meshes/<mesh>; epoch k >= 1 is epochs/<k> with its own tets.
+struct Epoch {
+    std::string group;      // relative to the simulation group: "" for epoch 0, "epochs/001", ...
+    std::size_t first = 0;  // global index of its first frame
+    std::size_t frames = 0;
+    std::size_t nodes = 0;
+};
+
+std::vector<Epoch> read_epochs(hid_t g, std::size_t total_frames, const std::string& where)
+{
+    std::vector<Epoch> out(1);
+    std::vector<std::string> names;
+    if (has_link(g, "epochs")) {
+        Group eg = open_group(g, "epochs", where + "/epochs");
+        names = link_names(eg.get(), where + "/epochs");
+        std::sort(names.begin(), names.end());
+        for (const auto& id : names) {
+            Group e = open_group(eg.get(), id, where + "/epochs/" + id);
+            const double first = read_numbers_attr(e.get(), "first_frame", 1, where + "/epochs/" + id)[0];
+            if (!(first >= double(out.back().first)) || first > double(total_frames) || first != std::floor(first))
+                throw InvalidInputError(where + "/epochs/" + id + ": first_frame " + std::to_string(first) +
+                                        " is not after the previous epoch's or beyond the frames");
+            out.push_back({"epochs/" + id, static_cast<std::size_t>(first), 0, 0});
+        }
+    }
+    for (std::size_t k = 0; k < out.size(); ++k) {
+        out[k].frames = (k + 1 < out.size() ? out[k + 1].first : total_frames) - out[k].first;
+        const std::string rel = out[k].group.empty() ? "positions" : out[k].group + "/positions";
+        DatasetView v = open_dataset(g, rel, where + "/" + rel);
+        check_shape(v, 3, 3, kMaxSimulationRows);
+        check_class(v, H5T_FLOAT, "float64");
+        if (v.dims[0] != out[k].frames)
+            throw InvalidInputError(v.where + " has " + std::to_string(v.dims[0]) + " frames, its epoch " +
+                                    std::to_string(out[k].frames));
+        if (v.dims[1] > kMaxMeshElements)
+            throw InvalidInputError(v.where + " has too many nodes");
+        out[k].nodes = static_cast<std::size_t>(v.dims[1]);
+    }
+    return out;
+}
+
+} // namespace
+
 SimulationInfo Hdf5Reader::read_simulation(const std::string& name) const
 {
     Group parent = impl().item_group("simulation", name, "simulation");
@@ -1452,17 +1547,10 @@ SimulationInfo Hdf5Reader::read_simulation(const std::string& name) const
         out.mesh = out.mesh.substr(8);
     out.status = has_attr(g.get(), "status") ? read_string_attr(g.get(), "status", where) : std::string();
     out.times = read_doubles(g.get(), "times", where, kMaxSimulationRows);
-    {
-        DatasetView v = open_dataset(g.get(), "positions", where + "/positions");
-        check_shape(v, 3, 3, kMaxSimulationRows);
-        check_class(v, H5T_FLOAT, "float64");
-        if (v.dims[0] != out.times.size())
-            throw InvalidInputError(v.where + " has " + std::to_string(v.dims[0]) + " frames but times has " +
-                                    std::to_string(out.times.size()));
-        if (v.dims[1] > kMaxMeshElements)
-            throw InvalidInputError(v.where + " has too many nodes");
-        out.nodes = static_cast<std::size_t>(v.dims[1]);
-    }
+    const auto epochs = read_epochs(g.get(), out.times.size(), where);
+    out.nodes = epochs[0].nodes;
+    for (std::size_t k = 1; k < epochs.size(); ++k)
+        out.topology_changes.push_back(epochs[k].first);
     const std::string sw = where + "/steps";
     Group steps = open_group(g.get(), "steps", sw);
     const auto t = read_doubles(steps.get(), "time", sw, kMaxSimulationRows);
@@ -1492,15 +1580,17 @@ std::vector<core::Vec3> Hdf5Reader::read_frame(const std::string& name, std::siz
     Group parent = impl().item_group("simulation", name, "simulation");
     const std::string where = impl().at("/simulation/" + name);
     Group g = open_group(parent.get(), name, where);
-    DatasetView v = open_dataset(g.get(), "positions", where + "/positions");
-    check_shape(v, 3, 3, kMaxSimulationRows);
-    check_class(v, H5T_FLOAT, "float64");
-    if (index >= v.dims[0])
-        throw InvalidInputError(v.where + ": no frame " + std::to_string(index) + " (it has " + std::to_string(v.dims[0]) + ")");
-    if (v.dims[1] > kMaxMeshElements)
-        throw InvalidInputError(v.where + " has too many nodes");
-    std::vector<core::Vec3> out(static_cast<std::size_t>(v.dims[1]));
-    const hsize_t start[3] = {index, 0, 0}, count[3] = {1, v.dims[1], 3};
+    const auto times = read_doubles(g.get(), "times", where, kMaxSimulationRows);
+    if (index >= times.size())
+        throw InvalidInputError(where + ": no frame " + std::to_string(index) + " (it has " + std::to_string(times.size()) + ")");
+    const auto epochs = read_epochs(g.get(), times.size(), where);
+    std::size_t k = epochs.size() - 1;
+    while (epochs[k].first > index)
+        --k;
+    const std::string rel = epochs[k].group.empty() ? "positions" : epochs[k].group + "/positions";
+    DatasetView v = open_dataset(g.get(), rel, where + "/" + rel);
+    std::vector<core::Vec3> out(epochs[k].nodes);
+    const hsize_t start[3] = {index - epochs[k].first, 0, 0}, count[3] = {1, v.dims[1], 3};
     Space file(ok_id(H5Dget_space(v.ds.get()), v.where));
     ok(H5Sselect_hyperslab(file.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), v.where);
     Space mem(ok_id(H5Screate_simple(3, count, nullptr), v.where));
@@ -1508,6 +1598,43 @@ std::vector<core::Vec3> Hdf5Reader::read_frame(const std::string& name, std::siz
         ok(H5Dread(v.ds.get(), H5T_NATIVE_DOUBLE, mem.get(), file.get(), H5P_DEFAULT, out.data()), v.where + ": cannot read frame");
     check_finite(out, v.where);
     return out;
+}
+
+core::TetMesh Hdf5Reader::read_frame_mesh(const std::string& name, std::size_t index) const
+{
+    const std::string where = impl().at("/simulation/" + name);
+    core::TetMesh mesh;
+    mesh.vertices = read_frame(name, index);
+    const SimulationInfo info = read_simulation(name);
+    std::size_t epoch = 0;
+    while (epoch < info.topology_changes.size() && info.topology_changes[epoch] <= index)
+        ++epoch;
+    if (epoch == 0) {
+        const TetMeshData m = read_tet_mesh(info.mesh);
+        mesh.tets = m.mesh.tets;
+        mesh.tet_labels = m.mesh.tet_labels;
+    } else {
+        Group parent = impl().item_group("simulation", name, "simulation");
+        Group g = open_group(parent.get(), name, where);
+        char id[32];
+        std::snprintf(id, sizeof id, "epochs/%03zu", epoch);
+        Group e = open_group(g.get(), id, where + "/" + id);
+        mesh.tets = read_cells<4>(e.get(), "tets", where + "/" + id);
+        DatasetView lv = open_dataset(e.get(), "tet_labels", where + "/" + id + "/tet_labels");
+        check_shape(lv, 1, 0, kMaxMeshElements);
+        mesh.tet_labels.resize(static_cast<std::size_t>(lv.dims[0]));
+        read_all(lv, mesh.tet_labels.data(), mesh.tet_labels.size());
+    }
+    // Frames are deformed states: a tet may be inverted in one (a blow-up is caught later), so
+    // only the indices and label count are checked here, not the orientation.
+    if (mesh.tet_labels.size() != mesh.tets.size())
+        throw InvalidInputError(where + ": frame " + std::to_string(index) + " has " + std::to_string(mesh.tets.size()) +
+                                " tets but " + std::to_string(mesh.tet_labels.size()) + " labels");
+    for (const auto& q : mesh.tets)
+        for (auto v : q)
+            if (v < 0 || std::size_t(v) >= mesh.vertices.size())
+                throw InvalidInputError(where + ": frame " + std::to_string(index) + " has a tet vertex out of range");
+    return mesh;
 }
 
 TetMeshData Hdf5Reader::read_tet_mesh(const std::string& name) const

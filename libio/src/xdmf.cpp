@@ -137,32 +137,33 @@ public:
         line(indent, "</Grid>");
     }
 
-    // A temporal collection: one grid per frame, the mesh's topology with the frame's hyperslab
-    // of the positions as geometry, so ParaView plays the run.
+    // A temporal collection: one grid per frame, its epoch's topology with the frame's hyperslab
+    // of that epoch's positions as geometry, so ParaView plays the run, cuts and refinement
+    // included.
     void simulation(int indent, const XdmfSimulation& sim)
     {
-        const std::string base = "/meshes/" + sim.mesh.name;
-        const std::string cells = std::to_string(sim.mesh.tets), n = std::to_string(sim.mesh.vertices);
-        const std::string frames = std::to_string(sim.times.size());
         line(indent, "<Grid Name=\"" + xml_escape(sim.name) + "\" GridType=\"Collection\" CollectionType=\"Temporal\">");
-        for (std::size_t f = 0; f < sim.times.size(); ++f) {
-            line(indent + 1, "<Grid Name=\"" + xml_escape(sim.name) + "_" + std::to_string(f) + "\" GridType=\"Uniform\">");
-            line(indent + 2, "<Time Value=\"" + exact(sim.times[f]) + "\"/>");
-            line(indent + 2, "<Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"" + cells + "\">");
-            hdf_item(indent + 3, cells + " 4", {"Int", 4}, base + "/tets");
-            line(indent + 2, "</Topology>");
-            line(indent + 2, "<Geometry GeometryType=\"XYZ\">");
-            line(indent + 3, "<DataItem ItemType=\"HyperSlab\" Dimensions=\"1 " + n + " 3\" Type=\"HyperSlab\">");
-            line(indent + 4, "<DataItem Dimensions=\"3 3\" Format=\"XML\">" + std::to_string(f) + " 0 0 1 1 1 1 " + n +
-                                 " 3</DataItem>");
-            hdf_item(indent + 4, frames + " " + n + " 3", {"Float", 8}, "/simulation/" + sim.name + "/positions");
-            line(indent + 3, "</DataItem>");
-            line(indent + 2, "</Geometry>");
-            line(indent + 2, "<Attribute Name=\"tet_labels\" AttributeType=\"Scalar\" Center=\"Cell\">");
-            hdf_item(indent + 3, cells, {"Int", 4}, base + "/tet_labels");
-            line(indent + 2, "</Attribute>");
-            line(indent + 1, "</Grid>");
-        }
+        for (const auto& e : sim.epochs)
+            for (std::size_t k = 0; k < e.frames; ++k) {
+                const std::size_t f = e.first_frame + k;
+                const std::string cells = std::to_string(e.cells), n = std::to_string(e.vertices);
+                line(indent + 1, "<Grid Name=\"" + xml_escape(sim.name) + "_" + std::to_string(f) + "\" GridType=\"Uniform\">");
+                line(indent + 2, "<Time Value=\"" + exact(sim.times[f]) + "\"/>");
+                line(indent + 2, "<Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"" + cells + "\">");
+                hdf_item(indent + 3, cells + " 4", {"Int", 4}, e.tets);
+                line(indent + 2, "</Topology>");
+                line(indent + 2, "<Geometry GeometryType=\"XYZ\">");
+                line(indent + 3, "<DataItem ItemType=\"HyperSlab\" Dimensions=\"1 " + n + " 3\" Type=\"HyperSlab\">");
+                line(indent + 4, "<DataItem Dimensions=\"3 3\" Format=\"XML\">" + std::to_string(k) + " 0 0 1 1 1 1 " + n +
+                                     " 3</DataItem>");
+                hdf_item(indent + 4, std::to_string(e.frames) + " " + n + " 3", {"Float", 8}, e.positions);
+                line(indent + 3, "</DataItem>");
+                line(indent + 2, "</Geometry>");
+                line(indent + 2, "<Attribute Name=\"tet_labels\" AttributeType=\"Scalar\" Center=\"Cell\">");
+                hdf_item(indent + 3, cells, {"Int", 4}, e.tet_labels);
+                line(indent + 2, "</Attribute>");
+                line(indent + 1, "</Grid>");
+            }
         line(indent, "</Grid>");
     }
 

@@ -100,3 +100,60 @@ TEST(Hdf5Simulation, AWriterNotCommittedLeavesNothing)
     EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 0);
     fs::remove_all(dir);
 }
+
+TEST(Hdf5Simulation, FramesAfterATopologyChangeUseTheirOwnMesh)
+{
+    // Two frames on the mesh, then a cut adds a vertex and splits a tet: the next two frames
+    // carry 6 positions and epochs/001's tets. Reading any frame gives its own mesh back, bit for
+    // bit; the sidecar's grids after the change point at the epoch's datasets.
+    const fs::path dir = fs::temp_directory_path() / "lobe_hdf5_simulation_epochs";
+    fs::create_directories(dir);
+    const fs::path file = dir / "sim.h5";
+    const core::TetMesh mesh = two_tets();
+    core::TetMesh cut = mesh; // tet 0 split at the midpoint of edge 0-1
+    cut.vertices.push_back({0.5, 0, 0});
+    cut.tets = {{0, 5, 2, 3}, {5, 1, 2, 3}, mesh.tets[1]};
+    cut.tet_labels = {1, 1, 4};
+    ASSERT_EQ(core::mesh_problem(cut), "");
+    {
+        io::Hdf5Writer w(file);
+        w.write_tet_mesh("block", mesh);
+        w.begin_simulation("run", "block");
+        w.append_frame("run", 0.0, mesh.vertices);
+        w.append_frame("run", 0.1, mesh.vertices);
+        core::TetMesh bad = cut;
+        bad.tets[0] = {0, 0, 2, 3};
+        EXPECT_THROW(w.begin_topology("run", bad), core::InvalidInputError);
+        EXPECT_THROW(w.begin_topology("nope", cut), core::InvalidInputError);
+        w.begin_topology("run", cut);
+        EXPECT_THROW(w.append_frame("run", 0.2, mesh.vertices), core::InvalidInputError); // 5 positions for 6
+        auto moved = cut.vertices;
+        moved[5].y = 0.25;
+        w.append_frame("run", 0.2, cut.vertices);
+        w.append_frame("run", 0.3, moved);
+        w.finish_simulation("run", {}, "completed");
+        w.commit();
+    }
+    io::Hdf5Reader r(file);
+    const io::SimulationInfo s = r.read_simulation("run");
+    EXPECT_EQ(s.nodes, 5u);
+    ASSERT_EQ(s.times.size(), 4u);
+    ASSERT_EQ(s.topology_changes, std::vector<std::size_t>{2});
+    EXPECT_EQ(r.read_frame("run", 1).size(), 5u);
+    const core::TetMesh f3 = r.read_frame_mesh("run", 3);
+    ASSERT_EQ(f3.vertices.size(), 6u);
+    EXPECT_EQ(f3.vertices[5].y, 0.25);
+    EXPECT_EQ(f3.tets, cut.tets);
+    EXPECT_EQ(f3.tet_labels, cut.tet_labels);
+    const core::TetMesh f0 = r.read_frame_mesh("run", 0);
+    EXPECT_EQ(f0.tets, mesh.tets);
+    EXPECT_THROW(r.read_frame("run", 4), core::InvalidInputError);
+    std::ifstream x(dir / "sim.xdmf");
+    std::stringstream text;
+    text << x.rdbuf();
+    const std::string xml = text.str();
+    EXPECT_NE(xml.find("sim.h5:/simulation/run/epochs/001/tets"), std::string::npos);
+    EXPECT_NE(xml.find("1 0 0 1 1 1 1 6 3"), std::string::npos); // frame 3 is the epoch's second
+    EXPECT_NE(xml.find("<Time Value=\"0.3\"/>"), std::string::npos);
+    fs::remove_all(dir);
+}

@@ -29,10 +29,23 @@ struct XdmfTetMesh {
     std::vector<std::string> quality;
 };
 
+// A run of frames on one topology: /simulation/<name>/positions on /meshes/<mesh> (epoch 0), or
+// /simulation/<name>/epochs/<k>/{positions,tets,tet_labels} after the k-th topology change.
+struct XdmfEpoch {
+    std::string positions;     // dataset path (frames, vertices, 3)
+    std::string tets;          // dataset path (cells, 4)
+    std::string tet_labels;    // dataset path (cells)
+    std::size_t vertices = 0;
+    std::size_t cells = 0;
+    std::size_t first_frame = 0;
+    std::size_t frames = 0;
+};
+
 struct XdmfSimulation {
-    std::string name;          // /simulation/<name>/positions (frames, vertices, 3)
-    XdmfTetMesh mesh;          // its topology: /meshes/<mesh.name>/tets and tet_labels
+    std::string name;
+    XdmfTetMesh mesh;          // the topology of epoch 0: /meshes/<mesh.name>/tets and tet_labels
     std::vector<double> times; // one per frame
+    std::vector<XdmfEpoch> epochs; // epochs[0] is the mesh's
 };
 
 struct XdmfContents {

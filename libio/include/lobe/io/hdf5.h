@@ -12,7 +12,8 @@
 //!     /surfaces/NAME/       vertices (n,3) float64, triangles (m,3) int32
 //!     /meshes/NAME/         vertices (n,3) float64, tets (m,4) int32, tet_labels (m) int32,
 //!                           quality/MEASURE (m) float64
-//!     /simulation/NAME/     attr mesh; times (F), positions (F,n,3) [mm]; steps/{time,dt,force,energy};
+//!     /simulation/NAME/     attr mesh; times (F), positions (F,n,3) [mm]; epochs/K/ after topology changes;
+//!                           steps/{time,dt,force,energy};
 //!                           statistics/ (float64 attributes), attr status
 //! Geometry attributes are in ITK's (x, y, z) order although the dataset dimensions are (z, y, x).
 //!
@@ -89,8 +90,11 @@ struct SimulationStep {
 
 //! A simulation read back (frames are read one at a time with Hdf5Reader::read_frame).
 struct SimulationInfo {
-    std::string mesh;                 //!< name of the tet mesh (in /meshes) whose topology the frames use
-    std::size_t nodes = 0;            //!< vertices per frame
+    std::string mesh;                 //!< name of the tet mesh (in /meshes) whose topology the first frames use
+    std::size_t nodes = 0;            //!< vertices per frame, until the first topology change
+    //! Frames at which the topology changed (a cut, a refinement): frame topology_changes[k] and
+    //! the ones after it use epochs/<k+1> (read_frame_mesh gives each frame's mesh).
+    std::vector<std::size_t> topology_changes;
     std::vector<double> times;        //!< time of each frame [s]
     std::vector<SimulationStep> steps;
     std::vector<std::pair<std::string, double>> statistics; //!< in the order written
@@ -166,6 +170,12 @@ public:
     //! (after the previous frame's). \throw core::InvalidInputError otherwise
     void append_frame(const std::string& name, double time, const std::vector<core::Vec3>& positions_mm);
 
+    //! Starts a new topology for the frames that follow (a cut or a refinement changed the mesh):
+    //! /simulation/<name>/epochs/<k>/ with the mesh's tets, tet labels and rest vertices; the
+    //! next frames must have mesh.vertices.size() positions.
+    //! \throw core::InvalidInputError for an unknown simulation or a mesh core::mesh_problem() rejects
+    void begin_topology(const std::string& name, const core::TetMesh& mesh);
+
     //! Appends integration steps (any number, e.g. those since the last frame).
     void append_steps(const std::string& name, const std::vector<SimulationStep>& steps);
 
@@ -229,6 +239,8 @@ public:
     SimulationInfo read_simulation(const std::string& name) const;
     //! Node positions [mm] of frame `index` (0-based) of /simulation/<name>.
     std::vector<core::Vec3> read_frame(const std::string& name, std::size_t index) const;
+    //! Frame `index` as a mesh: its positions as vertices, the tets and labels of its topology.
+    core::TetMesh read_frame_mesh(const std::string& name, std::size_t index) const;
 
     //! Every provenance record, oldest first.
     std::vector<Provenance> provenance() const;
