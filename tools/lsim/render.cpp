@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <numeric>
 
 namespace lobe::lsim {
@@ -57,13 +58,12 @@ std::string g3(double v, const char* unit)
 
 } // namespace
 
-tools::RgbImage render_mesh(const mss::Model& model, const std::vector<core::Vec3>& pos, const std::vector<Sphere>& probes,
-                            const std::string& caption)
+tools::RgbImage render_mesh(const Snapshot& shot, const std::vector<core::Vec3>& framing, const std::string& caption)
 {
     Camera cam;
     // Frame the rest mesh with a margin for the deformation.
     double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
-    for (const auto& v : model.mesh().vertices) {
+    for (const auto& v : framing) {
         x0 = std::min(x0, dot(v, cam.right));
         x1 = std::max(x1, dot(v, cam.right));
         y0 = std::min(y0, dot(v, cam.up));
@@ -74,42 +74,92 @@ tools::RgbImage render_mesh(const mss::Model& model, const std::vector<core::Vec
     cam.cy = (y0 + y1) / 2;
     cv::Mat img(kHeight, kWidth, CV_8UC3, cv::Scalar(255, 255, 255));
 
-    const auto& faces = model.surface_faces();
+    const auto& pos = shot.positions;
+    const auto& faces = shot.faces;
+    std::vector<char> cut(faces.size(), 0);
+    {
+        auto key = [](std::array<std::int32_t, 3> f) {
+            std::sort(f.begin(), f.end());
+            return f;
+        };
+        std::vector<std::array<std::int32_t, 3>> keys;
+        for (const auto& f : shot.cut_faces)
+            keys.push_back(key(f));
+        std::sort(keys.begin(), keys.end());
+        for (std::size_t f = 0; f < faces.size(); ++f)
+            cut[f] = std::binary_search(keys.begin(), keys.end(), key(faces[f]));
+    }
     std::vector<std::size_t> order(faces.size());
     std::iota(order.begin(), order.end(), 0);
     std::vector<double> depth(faces.size());
     for (std::size_t f = 0; f < faces.size(); ++f)
-        depth[f] = dot(pos[faces[f][0]] + pos[faces[f][1]] + pos[faces[f][2]], cam.towards);
+        depth[f] = dot(pos[std::size_t(faces[f][0])] + pos[std::size_t(faces[f][1])] + pos[std::size_t(faces[f][2])], cam.towards);
     std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return depth[a] < depth[b]; });
     const auto& palette = tools::default_label_colours();
     const core::Vec3 light = normalized(cam.towards + cam.up * 0.5 + cam.right * 0.3);
     for (const std::size_t f : order) {
         const auto& q = faces[f];
-        const core::Vec3 n = normalized(cross(pos[q[1]] - pos[q[0]], pos[q[2]] - pos[q[0]]));
+        const core::Vec3 a = pos[std::size_t(q[0])], b = pos[std::size_t(q[1])], c = pos[std::size_t(q[2])];
+        const core::Vec3 n = normalized(cross(b - a, c - a));
         if (dot(n, cam.towards) <= 0)
             continue; // facing away
-        const int label = model.mesh().tet_labels[std::size_t(model.surface_face_tets()[f])];
         std::array<std::uint8_t, 3> rgb{200, 120, 90};
-        for (const auto& c : palette)
-            if (c.label == label)
-                rgb = c.rgb;
+        for (const auto& col : palette)
+            if (col.label == shot.labels[f])
+                rgb = col.rgb;
+        if (cut[f])
+            rgb = {200, 60, 60}; // the raw tissue a cut has exposed
         const double shade = 0.35 + 0.65 * std::max(0.0, dot(n, light));
         cv::Point pts[3];
         for (int k = 0; k < 3; ++k) {
-            const auto p = cam.project(pos[q[k]]);
+            const auto p = cam.project(pos[std::size_t(q[std::size_t(k)])]);
             pts[k] = {int(std::lround(p.x)), int(std::lround(p.y))};
         }
         cv::fillConvexPoly(img, pts, 3, cv::Scalar(rgb[2] * shade, rgb[1] * shade, rgb[0] * shade), cv::LINE_AA);
         cv::polylines(img, std::vector<std::vector<cv::Point>>{{pts[0], pts[1], pts[2]}}, true, cv::Scalar(60, 60, 60), 1,
                       cv::LINE_AA);
     }
-    for (const auto& s : probes) {
+    // The cut line: where a cut's faces meet the rest of the surface, drawn in red even while
+    // the lips are closed.
+    {
+        std::map<std::pair<std::int32_t, std::int32_t>, int> edges; // +1 per cut face, +2 per other
+        for (std::size_t f = 0; f < faces.size(); ++f)
+            for (int k = 0; k < 3; ++k) {
+                const auto a = faces[f][std::size_t(k)], b = faces[f][std::size_t((k + 1) % 3)];
+                edges[{std::min(a, b), std::max(a, b)}] |= cut[f] ? 1 : 2;
+            }
+        for (const auto& [e, kind] : edges) {
+            if (kind != 3)
+                continue;
+            const auto pa = cam.project(pos[std::size_t(e.first)]), pb = cam.project(pos[std::size_t(e.second)]);
+            cv::line(img, {int(std::lround(pa.x)), int(std::lround(pa.y))}, {int(std::lround(pb.x)), int(std::lround(pb.y))},
+                     cv::Scalar(40, 40, 220), 2, cv::LINE_AA);
+        }
+    }
+    for (const auto& s : shot.spheres) {
         const auto c = cam.project(s.centre_mm);
+        const cv::Point centre{int(std::lround(c.x)), int(std::lround(c.y))};
         const int r = int(std::lround(cam.scale * s.radius_mm));
+        if (s.forceps) {
+            // Two jaws: closed, they meet on the tissue; open, they stand apart.
+            const int gap = s.closed ? 0 : r / 2;
+            for (int side : {-1, 1}) {
+                const cv::Point tip{centre.x + side * gap, centre.y};
+                const cv::Point heel{centre.x + side * (gap + r / 3), centre.y - 3 * r};
+                cv::line(img, tip, heel, cv::Scalar(90, 90, 90), std::max(2, r / 4), cv::LINE_AA);
+            }
+            cv::circle(img, centre, r, cv::Scalar(40, 40, 40), 1, cv::LINE_AA);
+            continue;
+        }
         cv::Mat overlay = img.clone();
-        cv::circle(overlay, {int(std::lround(c.x)), int(std::lround(c.y))}, r, cv::Scalar(150, 150, 150), cv::FILLED, cv::LINE_AA);
+        cv::circle(overlay, centre, r, cv::Scalar(150, 150, 150), cv::FILLED, cv::LINE_AA);
         cv::addWeighted(overlay, 0.6, img, 0.4, 0, img);
-        cv::circle(img, {int(std::lround(c.x)), int(std::lround(c.y))}, r, cv::Scalar(40, 40, 40), 1, cv::LINE_AA);
+        cv::circle(img, centre, r, cv::Scalar(40, 40, 40), 1, cv::LINE_AA);
+    }
+    for (const auto& [a, b] : shot.blades) {
+        const auto pa = cam.project(a), pb = cam.project(b);
+        cv::line(img, {int(std::lround(pa.x)), int(std::lround(pa.y))}, {int(std::lround(pb.x)), int(std::lround(pb.y))},
+                 cv::Scalar(30, 30, 30), 3, cv::LINE_AA);
     }
     cv::putText(img, caption, {10, kHeight - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     return to_rgb(img);

@@ -8,6 +8,7 @@
 
 #include "lobe/core/errors.h"
 #include "lobe/io/hdf5.h"
+#include "lobe/mesh/quality.h"
 #include "lobe/mss/simulator.h"
 
 #include <chrono>
@@ -28,6 +29,38 @@ std::string num(double v)
 }
 
 const io::LabelTable kTissueTable = {{1, "liver"}, {2, "portal_vein"}, {3, "hepatic_veins"}, {4, "tumour"}};
+
+// The thesis's fast tetrahedron measure (eq 6.17), from libmesh: the refinement's quality check
+// (libmss takes it as a function so that it need not link libmesh).
+double fast_quality(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d)
+{
+    return mesh::tet_measures(a, b, c, d, 1.0)[mesh::Measure::Fast];
+}
+
+// What a picture needs of the simulation at one frame: the boundary, coloured by tissue, and
+// where the instruments are.
+Snapshot snapshot(const mss::Simulator& sim, double t)
+{
+    Snapshot out;
+    out.time = t;
+    const auto& m = sim.model();
+    out.faces = m.surface_faces();
+    for (auto tet : m.surface_face_tets())
+        out.labels.push_back(m.mesh().tet_labels[std::size_t(tet)]);
+    out.positions = sim.state().positions_mm();
+    for (const auto& p : sim.probes())
+        out.spheres.push_back({mss::probe_position(p, t), p.radius_mm, false});
+    for (std::size_t g = 0; g < sim.grasps().size(); ++g) {
+        const auto& gp = sim.grasps()[g];
+        const bool closed = !sim.held_nodes(g).empty();
+        out.spheres.push_back({mss::grasp_position(gp, t), gp.jaw_radius_mm, true, closed});
+    }
+    for (const auto& b : sim.blades())
+        out.blades.push_back(mss::blade_position(b, t));
+    const auto& cut = sim.cut_faces();
+    out.cut_faces.assign(cut.begin(), cut.end());
+    return out;
+}
 
 } // namespace
 
@@ -68,15 +101,24 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
                          std::to_string(model.springs().size()) + " springs, " + std::to_string(model.tet_count()) +
                          " tets, " + mss::stiffness_name(scene.model.stiffness) + " stiffness; critical step " +
                          num(model.critical_time_step() * 1e3) + " ms");
-        sim.emplace(std::move(model), scene.simulator);
-        for (const auto& p : scene.probes)
-            try {
+        mss::SimulatorParams params = scene.simulator;
+        if (params.refine.enabled)
+            params.refine.quality = fast_quality;
+        sim.emplace(std::move(model), params);
+        try {
+            for (const auto& p : scene.probes)
                 sim->add_probe(p);
-            } catch (const core::InvalidInputError& e) {
-                throw core::InvalidInputError(o.scene_file.string() + ": " + e.what());
-            }
+            for (const auto& g : scene.grasps)
+                sim->add_grasp(g);
+            for (const auto& b : scene.blades)
+                sim->add_blade(b);
+        } catch (const core::InvalidInputError& e) {
+            throw core::InvalidInputError(o.scene_file.string() + ": " + e.what());
+        }
     });
     const mss::Model& model = sim->model();
+    const std::size_t model_nodes0 = model.node_count(), model_springs0 = model.springs().size(), model_tets0 = model.tet_count();
+    const double critical0 = model.critical_time_step();
 
     io::Hdf5Writer out(o.out);
     out.copy_provenance(*in);
@@ -85,18 +127,26 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
     out.append_frame("run", 0, sim->state().positions_mm());
 
     std::vector<io::SimulationStep> all_steps, pending;
-    std::vector<std::pair<double, std::vector<core::Vec3>>> picture_frames;
+    std::vector<Snapshot> picture_frames;
+    const std::vector<core::Vec3> framing = model.mesh().vertices; // the rest mesh frames every picture
+    std::int64_t topology_written = 0; // the simulator's topology_changes that the file has
     std::vector<double> png_times = scene.png_times;
     if (png_times.empty())
         png_times = {0, scene.duration / 2, scene.duration};
+    // Each requested time takes the first frame within half a frame interval of it (frames lie
+    // on multiples of the interval, so a time between two frames takes the earlier one).
+    std::vector<char> taken(png_times.size(), 0);
     auto want_picture = [&](double t) {
-        for (double p : png_times)
-            if (std::abs(p - t) <= 0.5 * scene.frame_interval)
-                return true;
-        return false;
+        bool want = false;
+        for (std::size_t i = 0; i < png_times.size(); ++i)
+            if (!taken[i] && std::abs(png_times[i] - t) <= 0.5 * scene.frame_interval * (1 + 1e-9)) {
+                taken[i] = 1;
+                want = true;
+            }
+        return want;
     };
     if (!o.png_dir.empty() && want_picture(0))
-        picture_frames.emplace_back(0, sim->state().positions_mm());
+        picture_frames.push_back(snapshot(*sim, 0));
 
     std::string status = "completed";
     int frames = 1, next_report = 1;
@@ -113,10 +163,15 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
             out.append_steps("run", pending);
             all_steps.insert(all_steps.end(), pending.begin(), pending.end());
             pending.clear();
+            if (sim->statistics().topology_changes != topology_written) {
+                // A cut or a refinement changed the mesh: the frames from here use its topology.
+                out.begin_topology("run", sim->model().mesh());
+                topology_written = sim->statistics().topology_changes;
+            }
             out.append_frame("run", t, sim->state().positions_mm());
             ++frames;
             if (!o.png_dir.empty() && want_picture(t))
-                picture_frames.emplace_back(t, sim->state().positions_mm());
+                picture_frames.push_back(snapshot(*sim, t));
             if (f * 10 >= next_report * frame_count) {
                 progress.message("t = " + num(t) + " s (" + std::to_string(next_report * 10) + " %), " +
                                  std::to_string(sim->statistics().steps) + " steps, dt " + num(sim->time_step() * 1e3) +
@@ -137,19 +192,33 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
     const double sim_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_sim).count();
 
     const auto& st = sim->statistics();
+    const mss::Model& final_model = sim->model();
     std::vector<std::pair<std::string, double>> stats = {
-        {"nodes", double(model.node_count())},
-        {"springs", double(model.springs().size())},
-        {"tets", double(model.tet_count())},
+        {"nodes", double(model_nodes0)},
+        {"springs", double(model_springs0)},
+        {"tets", double(model_tets0)},
+        {"final_nodes", double(final_model.node_count())},
+        {"final_tets", double(final_model.tet_count())},
+        {"topology_updates", double(st.topology_updates)},
+        {"topology_changes", double(st.topology_changes)},
+        {"cut_splits", double(st.cut_splits)},
+        {"cut_snaps", double(st.cut_snaps)},
+        {"cut_separations", double(st.cut_separations)},
+        {"refine_splits", double(st.refine_splits)},
+        {"coarsen_merges", double(st.coarsen_merges)},
+        {"grasp_slips", double(st.grasp_slips)},
+        {"lip_corrections", double(st.lip_corrections)},
+        {"topology_wall_time_s", st.topology_seconds},
+        {"max_topology_update_s", st.max_topology_seconds},
         {"frames", double(frames)},
         {"steps", double(all_steps.size())},           // kept in steps/ (up to the last good state)
         {"steps_integrated", double(st.steps)},        // including any undone by a blow-up
         {"simulated_time_s", sim->state().time},
-        {"critical_dt_s", model.critical_time_step()},
-        {"gershgorin_dt_s", model.gershgorin_time_step()},
+        {"critical_dt_s", final_model.critical_time_step()},
+        {"gershgorin_dt_s", final_model.gershgorin_time_step()},
         {"min_dt_s", st.min_dt},
         {"max_dt_s", st.max_dt},
-        {"floor_dt_s", scene.simulator.time_step.floor_factor * model.critical_time_step()},
+        {"floor_dt_s", scene.simulator.time_step.floor_factor * critical0},
         {"floor_hits", double(st.floor_hits)},
         {"step_cuts", double(st.step_cuts)},
         {"rollbacks", double(st.rollbacks)},
@@ -175,13 +244,11 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
 
     if (!o.png_dir.empty()) {
         fs::create_directories(o.png_dir);
-        for (const auto& [t, pos] : picture_frames) {
-            std::vector<Sphere> spheres;
-            for (const auto& p : sim->probes())
-                spheres.push_back({mss::probe_position(p, t), p.radius_mm});
+        for (const auto& shot : picture_frames) {
             char name[64];
-            std::snprintf(name, sizeof name, "frame_%07.3fs.png", t);
-            tools::write_png(o.png_dir / name, render_mesh(model, pos, spheres, "lsim t = " + num(t) + " s"));
+            std::snprintf(name, sizeof name, "frame_%07.3fs.png", shot.time);
+            tools::write_png(o.png_dir / name, render_mesh(shot, framing, "lsim t = " + num(shot.time) + " s, " +
+                                                                             std::to_string(shot.positions.size()) + " nodes"));
         }
         tools::write_png(o.png_dir / "force.png",
                          plot_force(all_steps, "force of the tissue on the instruments [N] against time [s]"));

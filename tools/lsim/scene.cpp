@@ -94,9 +94,14 @@ public:
                 section = trim(l.substr(1, l.size() - 2));
                 if (section == "probe")
                     s.probes.emplace_back().name = "probe" + std::to_string(s.probes.size());
+                else if (section == "grasp")
+                    s.grasps.emplace_back().name = "forceps" + std::to_string(s.grasps.size());
+                else if (section == "blade")
+                    s.blades.emplace_back().name = "scalpel" + std::to_string(s.blades.size());
                 else if (section != "model" && section != "tissues" && section != "fixed" && section != "integrator" &&
-                         section != "time" && section != "output")
-                    fail("unknown section [" + section + "] (model, tissues, fixed, integrator, time, probe, output)");
+                         section != "time" && section != "output" && section != "refine")
+                    fail("unknown section [" + section + "] (model, tissues, fixed, integrator, time, probe, grasp, blade, "
+                         "refine, output)");
                 continue;
             }
             const auto eq = l.find('=');
@@ -178,9 +183,11 @@ public:
                     s.duration = positive(value, key);
                 else if (key == "frame_interval")
                     s.frame_interval = positive(value, key);
+                else if (key == "topology_interval")
+                    s.simulator.topology_interval = positive(value, key);
                 else
                     fail("unknown key '" + key + "' in [time] (policy, dt, safety, max_factor, floor_factor, tolerance, "
-                         "duration, frame_interval)");
+                         "duration, frame_interval, topology_interval)");
             } else if (section == "probe") {
                 auto& p = s.probes.back();
                 if (key == "name")
@@ -194,6 +201,70 @@ public:
                     p.path.push_back({q[0], {q[1], q[2], q[3]}});
                 } else
                     fail("unknown key '" + key + "' in [probe] (name, radius, point = t x y z)");
+            } else if (section == "grasp") {
+                auto& g = s.grasps.back();
+                if (key == "name")
+                    g.name = value;
+                else if (key == "radius")
+                    g.jaw_radius_mm = positive(value, key);
+                else if (key == "close")
+                    g.close_time = non_negative(value, key);
+                else if (key == "open")
+                    g.open_time = positive(value, key);
+                else if (key == "max_force")
+                    g.max_force_n = positive(value, key);
+                else if (key == "point") {
+                    const auto q = numbers(value, 4, key);
+                    if (!g.path.empty() && !(q[0] > g.path.back().time))
+                        fail("path times must increase");
+                    g.path.push_back({q[0], {q[1], q[2], q[3]}});
+                } else
+                    fail("unknown key '" + key + "' in [grasp] (name, radius, close, open, max_force, point = t x y z)");
+                if (key == "open" && !(g.open_time > g.close_time))
+                    fail("'open' must come after 'close'");
+            } else if (section == "blade") {
+                auto& b = s.blades.back();
+                if (key == "name")
+                    b.name = value;
+                else if (key == "snap") {
+                    b.snap = positive(value, key);
+                    if (!(b.snap < 0.5))
+                        fail("'snap' must be below 0.5");
+                } else if (key == "min_edge")
+                    b.min_edge_mm = non_negative(value, key);
+                else if (key == "pose") {
+                    const auto q = numbers(value, 7, key);
+                    if (!b.path.empty() && !(q[0] > b.path.back().time))
+                        fail("pose times must increase");
+                    if (q[1] == q[4] && q[2] == q[5] && q[3] == q[6])
+                        fail("the blade's two ends coincide");
+                    b.path.push_back({q[0], {q[1], q[2], q[3]}, {q[4], q[5], q[6]}});
+                } else
+                    fail("unknown key '" + key + "' in [blade] (name, snap, min_edge, pose = t ax ay az bx by bz)");
+            } else if (section == "refine") {
+                auto& r = s.simulator.refine;
+                r.enabled = true;
+                if (key == "enabled") {
+                    if (value != "true" && value != "false")
+                        fail("'enabled' is true or false");
+                    r.enabled = value == "true";
+                } else if (key == "margin")
+                    r.margin_mm = non_negative(value, key);
+                else if (key == "edge")
+                    r.edge_mm = non_negative(value, key);
+                else if (key == "min_edge")
+                    r.min_edge_mm = non_negative(value, key);
+                else if (key == "min_quality")
+                    r.min_quality = non_negative(value, key);
+                else if (key == "coarsen_factor") {
+                    r.coarsen_factor = positive(value, key);
+                    if (!(r.coarsen_factor >= 1))
+                        fail("'coarsen_factor' must be at least 1");
+                } else if (key == "max_splits")
+                    r.max_splits = int(positive(value, key));
+                else
+                    fail("unknown key '" + key + "' in [refine] (enabled, margin, edge, min_edge, min_quality, "
+                         "coarsen_factor, max_splits)");
             } else if (section == "output") {
                 if (key == "png_times")
                     s.png_times = numbers(value, 0, key);
@@ -204,6 +275,12 @@ public:
         for (std::size_t i = 0; i < s.probes.size(); ++i)
             if (s.probes[i].path.empty())
                 throw core::InvalidInputError(file_ + ": probe '" + s.probes[i].name + "' has no 'point'");
+        for (const auto& g : s.grasps)
+            if (g.path.empty())
+                throw core::InvalidInputError(file_ + ": forceps '" + g.name + "' have no 'point'");
+        for (const auto& b : s.blades)
+            if (b.path.empty())
+                throw core::InvalidInputError(file_ + ": blade '" + b.name + "' has no 'pose'");
         if (!modulus.empty() || density > 0)
             for (auto& t : s.model.tissues) {
                 if (modulus.count(t.label))

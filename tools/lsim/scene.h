@@ -22,6 +22,8 @@ struct Scene {
     mss::SimulatorParams simulator;
     std::vector<FixedBox> fixed;
     std::vector<mss::ProbeParams> probes;
+    std::vector<mss::GraspParams> grasps;
+    std::vector<mss::BladeParams> blades;
     double duration = 1.0;        // [s]
     double frame_interval = 0.02; // [s] between output frames
     std::vector<double> png_times; // frames to draw with --png [s]; empty = first, middle, last
