@@ -62,4 +62,8 @@ mkdir -p "$out/simulate" "$out/pictures/simulate"
 "$bin/lsim" "$out/mesh/liver-mesh.h5" examples/phantom_probe.scene -o "$out/simulate/probe.h5" \
   --png "$out/pictures/simulate"
 
+echo "== 7. cut: forceps lift the tip of the left lobe and a scalpel cuts it off (lsim, progressive cutting)" >&2
+"$bin/lsim" "$out/mesh/liver-mesh.h5" examples/grasp_then_cut.scene -o "$out/simulate/grasp_then_cut.h5" \
+  --png "$out/pictures/cut"
+
 echo "== done: results in $out/, pictures in $out/pictures/" >&2
