@@ -16,7 +16,7 @@ packages=(
 )
 
 if [ "${1:-}" = "--bench" ]; then
-  packages+=(libinsighttoolkit5-dev python3-matplotlib python3-numpy tetgen)
+  packages+=(libinsighttoolkit5-dev python3-matplotlib python3-numpy python3-pil tetgen)
 fi
 
 missing=()
