@@ -25,6 +25,14 @@ core::TetMesh two_tets()
     return m;
 }
 
+std::string read_text(const fs::path& path)
+{
+    std::ifstream x(path);
+    std::stringstream text;
+    text << x.rdbuf();
+    return text.str();
+}
+
 } // namespace
 
 TEST(Hdf5Simulation, FramesStepsAndStatisticsRoundTrip)
@@ -74,10 +82,7 @@ TEST(Hdf5Simulation, FramesStepsAndStatisticsRoundTrip)
 
     // The sidecar plays the frames: one temporal collection with a grid per frame, each a
     // hyperslab of the positions.
-    std::ifstream x(dir / "sim.xdmf");
-    std::stringstream text;
-    text << x.rdbuf();
-    const std::string xml = text.str();
+    const std::string xml = read_text(dir / "sim.xdmf");
     EXPECT_NE(xml.find("CollectionType=\"Temporal\""), std::string::npos);
     EXPECT_NE(xml.find("<Time Value=\"0.2\"/>"), std::string::npos);
     EXPECT_NE(xml.find("2 0 0 1 1 1 1 5 3"), std::string::npos);
@@ -148,10 +153,7 @@ TEST(Hdf5Simulation, FramesAfterATopologyChangeUseTheirOwnMesh)
     const core::TetMesh f0 = r.read_frame_mesh("run", 0);
     EXPECT_EQ(f0.tets, mesh.tets);
     EXPECT_THROW(r.read_frame("run", 4), core::InvalidInputError);
-    std::ifstream x(dir / "sim.xdmf");
-    std::stringstream text;
-    text << x.rdbuf();
-    const std::string xml = text.str();
+    const std::string xml = read_text(dir / "sim.xdmf");
     EXPECT_NE(xml.find("sim.h5:/simulation/run/epochs/001/tets"), std::string::npos);
     EXPECT_NE(xml.find("1 0 0 1 1 1 1 6 3"), std::string::npos); // frame 3 is the epoch's second
     EXPECT_NE(xml.find("<Time Value=\"0.3\"/>"), std::string::npos);

@@ -80,20 +80,9 @@ bool inside(const mss::Model& m, const mss::State& s, const std::array<std::int3
 // Connected pieces of the mesh (tets joined by shared vertices).
 int pieces(const mss::Model& m)
 {
-    std::vector<int> parent(m.node_count());
-    std::iota(parent.begin(), parent.end(), 0);
-    auto find = [&](int v) {
-        while (parent[std::size_t(v)] != v)
-            v = parent[std::size_t(v)] = parent[std::size_t(parent[std::size_t(v)])];
-        return v;
-    };
-    for (const auto& q : m.mesh().tets)
-        for (int i = 1; i < 4; ++i)
-            parent[std::size_t(find(q[std::size_t(i)]))] = find(q[0]);
-    int n = 0;
-    for (std::size_t v = 0; v < parent.size(); ++v)
-        n += find(int(v)) == int(v);
-    return n;
+    std::vector<int> p = piece_of(m);
+    std::sort(p.begin(), p.end());
+    return int(std::unique(p.begin(), p.end()) - p.begin());
 }
 
 double min_volume(const mss::Model& m, const mss::State& s, bool rest)
