@@ -11,9 +11,9 @@ repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 bin="${BIN:-$repo/build/tools}"
 bench="${BENCH:-$repo/build-bench/bench}"
 out="${OUT_DIR:-$repo/docs/benchmarks}"
-export OMP_NUM_THREADS=1
+echo "machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc --all) CPUs; load average $(cut -d' ' -f1-3 /proc/loadavg)" >&2
+export OMP_NUM_THREADS=1 # Debian's CHOLMOD links libgomp; every figure is one thread
 mkdir -p "$out"
-echo "machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) CPUs; load average $(cut -d' ' -f1-3 /proc/loadavg)" >&2
 if [ -n "${MESHES:-}" ]; then
   meshes="$MESHES"
   mkdir -p "$meshes"
