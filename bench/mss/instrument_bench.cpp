@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -53,16 +54,18 @@ struct Result {
     double simulated_s = 0;
 };
 
-// The front surface point of the liver on the line through its centre along y (the smallest y
-// of the vertices within 5 mm of that line).
-core::Vec3 front_point(const core::TetMesh& m, const Box& b)
+// Where a sphere of radius r coming from the front (-y) along the line through the liver's
+// centre first touches a vertex: its centre's y then.
+double first_contact_y(const core::TetMesh& m, const Box& b, double r)
 {
     const double cx = (b.lo.x + b.hi.x) / 2, cz = (b.lo.z + b.hi.z) / 2;
-    core::Vec3 best{cx, b.hi.y, cz};
-    for (const auto& v : m.vertices)
-        if (std::abs(v.x - cx) < 5 && std::abs(v.z - cz) < 5 && v.y < best.y)
-            best = v;
-    return best;
+    double y = b.hi.y;
+    for (const auto& v : m.vertices) {
+        const double d2 = (v.x - cx) * (v.x - cx) + (v.z - cz) * (v.z - cz);
+        if (d2 < r * r)
+            y = std::min(y, v.y - std::sqrt(r * r - d2));
+    }
+    return y;
 }
 
 Result run(const std::string& name, const core::TetMesh& mesh, const std::string& scene, double seconds,
@@ -83,11 +86,12 @@ Result run(const std::string& name, const core::TetMesh& mesh, const std::string
     r.nodes0 = model.node_count();
     r.tets0 = model.tet_count();
     mss::Simulator sim(std::move(model), sp);
-    const core::Vec3 front = front_point(mesh, b);
     if (scene.rfind("probe", 0) == 0) {
         mss::ProbeParams p;
         p.radius_mm = 10;
-        p.path = {{0, front - core::Vec3{0, 12, 0}}, {0.6 * seconds, front - core::Vec3{0, 2, 0}}}; // 8 mm in
+        const double y = first_contact_y(mesh, b, p.radius_mm);
+        const double cx = (b.lo.x + b.hi.x) / 2, cz = (b.lo.z + b.hi.z) / 2;
+        p.path = {{0, {cx, y - 2, cz}}, {0.6 * seconds, {cx, y + 8, cz}}}; // 8 mm past the first contact
         sim.add_probe(p);
     } else if (scene == "cut") {
         mss::BladeParams bl;
