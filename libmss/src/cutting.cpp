@@ -367,18 +367,12 @@ void Cutting::refresh_lips(const Model& model)
     }
 }
 
-int Cutting::keep_apart(const Model& model, State& st)
+void Cutting::refresh_candidates(const State& st)
 {
+    candidates_.clear();
     if (lips_.empty())
-        return 0;
-    // Per lip face: centroid, unit normal, twice the area, reach (circumscribing radius plus
-    // the half edge a crossing may reach behind it); faces in a hash grid of cells one longest
-    // edge wide, by centroid (positions in mm).
-    struct Face {
-        core::Vec3 c, n;
-        double area2, reach2, edge;
-    };
-    std::vector<Face> fd(lips_.size());
+        return;
+    // Lip faces in a hash grid of cells one longest edge wide, by centroid (positions in mm).
     const double cell = std::max(max_edge_mm_, 1e-3);
     auto key = [&](const core::Vec3& p) {
         return std::array<long, 3>{long(std::floor(p.x / cell)), long(std::floor(p.y / cell)), long(std::floor(p.z / cell))};
@@ -391,96 +385,126 @@ int Cutting::keep_apart(const Model& model, State& st)
     };
     std::unordered_map<std::array<long, 3>, std::vector<std::int32_t>, Hash> grid;
     grid.reserve(lips_.size());
+    std::vector<core::Vec3> centre(lips_.size()), fnormal(lips_.size());
+    std::vector<double> reach2(lips_.size());
     std::vector<core::Vec3> normal(lip_vertices_.size(), core::Vec3{0, 0, 0});
     for (std::size_t f = 0; f < lips_.size(); ++f) {
         const auto& g = lips_[f];
         const core::Vec3 a = st.position_mm(std::size_t(g[0])), b = st.position_mm(std::size_t(g[1])),
                          c = st.position_mm(std::size_t(g[2]));
+        centre[f] = (a + b + c) / 3;
         const core::Vec3 nn = cross(b - a, c - a);
-        Face& F = fd[f];
-        F.c = (a + b + c) / 3;
-        F.area2 = norm(nn);
-        F.n = F.area2 > 0 ? nn / F.area2 : core::Vec3{0, 0, 0};
-        F.edge = std::max({norm(b - a), norm(c - b), norm(a - c)});
-        const double r = std::max({norm(a - F.c), norm(b - F.c), norm(c - F.c)}) + 0.5 * F.edge;
-        F.reach2 = r * r;
-        grid[key(F.c)].push_back(std::int32_t(f));
-        // Lip normals: area-weighted over each lip vertex's lip faces.
+        fnormal[f] = normalized(nn);
+        // A vertex can cross the face only over it and at most half an edge deep: within the
+        // face's radius plus half its longest edge, plus 1 mm for what the lips may move before
+        // the next refresh (a few ms at tissue speeds of mm/s to cm/s).
+        const double r = std::max({norm(a - centre[f]), norm(b - centre[f]), norm(c - centre[f])}) +
+                         0.5 * std::max({norm(b - a), norm(c - b), norm(a - c)}) + 1.0;
+        reach2[f] = r * r;
+        grid[key(centre[f])].push_back(std::int32_t(f));
+        for (auto v : g)
+            normal[std::size_t(std::lower_bound(lip_vertices_.begin(), lip_vertices_.end(), v) - lip_vertices_.begin())] += nn;
+    }
+    // Within the face's reach, facing the vertex's lip within 80 degrees (the per-step test asks
+    // 60), not of its own neighbourhood.
+    for (std::size_t i = 0; i < lip_vertices_.size(); ++i) {
+        const auto v = lip_vertices_[i];
+        const core::Vec3 p = st.position_mm(std::size_t(v));
+        const core::Vec3 nv = normalized(normal[i]);
+        const auto rb = ring_.begin() + std::ptrdiff_t(ring_start_[i]), re = ring_.begin() + std::ptrdiff_t(ring_start_[i + 1]);
+        const auto k = key(p);
+        for (long dx = -2; dx <= 2; ++dx)
+            for (long dy = -2; dy <= 2; ++dy)
+                for (long dz = -2; dz <= 2; ++dz) {
+                    const auto it = grid.find({k[0] + dx, k[1] + dy, k[2] + dz});
+                    if (it == grid.end())
+                        continue;
+                    for (auto f : it->second) {
+                        const core::Vec3 pc = p - centre[std::size_t(f)];
+                        if (dot(pc, pc) > reach2[std::size_t(f)] || dot(fnormal[std::size_t(f)], nv) > -0.17)
+                            continue;
+                        const auto& g = lips_[std::size_t(f)];
+                        if (std::binary_search(rb, re, g[0]) || std::binary_search(rb, re, g[1]) || std::binary_search(rb, re, g[2]))
+                            continue;
+                        candidates_.emplace_back(std::int32_t(i), f);
+                    }
+                }
+    }
+}
+
+int Cutting::keep_apart(const Model& model, State& st)
+{
+    if (candidates_.empty())
+        return 0;
+    // Lip normals now: area-weighted over each lip vertex's lip faces.
+    std::vector<core::Vec3> normal(lip_vertices_.size(), core::Vec3{0, 0, 0});
+    for (const auto& g : lips_) {
+        const core::Vec3 a = st.position_mm(std::size_t(g[0])), b = st.position_mm(std::size_t(g[1])),
+                         c = st.position_mm(std::size_t(g[2]));
+        const core::Vec3 nn = cross(b - a, c - a);
         for (auto v : g)
             normal[std::size_t(std::lower_bound(lip_vertices_.begin(), lip_vertices_.end(), v) - lip_vertices_.begin())] += nn;
     }
     const auto& inv = model.inverse_masses();
     int count = 0;
-    for (std::size_t i = 0; i < lip_vertices_.size(); ++i) {
-        const auto v = lip_vertices_[i];
+    for (const auto& [slot, f] : candidates_) {
+        const auto v = lip_vertices_[std::size_t(slot)];
+        const auto& g = lips_[std::size_t(f)];
+        const core::Vec3 a = st.position_mm(std::size_t(g[0])), b = st.position_mm(std::size_t(g[1])),
+                         c = st.position_mm(std::size_t(g[2]));
+        const core::Vec3 nn = cross(b - a, c - a);
+        const double area2 = norm(nn);
+        if (!(area2 > 0))
+            continue;
+        const core::Vec3 n = nn / area2;
         // Only a face that faces v's own lip can be crossed by it: lips of one cut face each
         // other, while two lips of one piece meeting at a corner (two cuts) do not.
-        const core::Vec3 nv = normalized(normal[i]);
-        // v's neighbourhood (faces among its vertices are its own lip).
-        const auto rb = ring_.begin() + std::ptrdiff_t(ring_start_[i]), re = ring_.begin() + std::ptrdiff_t(ring_start_[i + 1]);
-        const auto k = key(st.position_mm(std::size_t(v)));
-        for (long dx = -1; dx <= 1; ++dx)
-            for (long dy = -1; dy <= 1; ++dy)
-                for (long dz = -1; dz <= 1; ++dz) {
-                    const auto it = grid.find({k[0] + dx, k[1] + dy, k[2] + dz});
-                    if (it == grid.end())
-                        continue;
-                    for (auto f : it->second) {
-                        const Face& F = fd[std::size_t(f)];
-                        const core::Vec3 p = st.position_mm(std::size_t(v));
-                        const core::Vec3 pc = p - F.c;
-                        if (dot(pc, pc) > F.reach2 || dot(F.n, nv) > -0.5 || !(F.area2 > 0))
-                            continue; // out of reach, or not facing v's lip (within 60 degrees)
-                        const double d = dot(pc, F.n);
-                        if (d >= 0)
-                            continue; // in front
-                        const auto& g = lips_[std::size_t(f)];
-                        if (std::binary_search(rb, re, g[0]) || std::binary_search(rb, re, g[1]) || std::binary_search(rb, re, g[2]))
-                            continue;
-                        // Snapping makes a cut surface zigzag by up to snap x the edge, so a
-                        // vertex of one lip may lie behind a face of the other where the cut
-                        // was made: that depth, from the rest shape, is allowed; only going
-                        // deeper is a crossing.
-                        const double allowed = std::min(0.0, rest_depth(model, v, g));
-                        if (d >= allowed || d < allowed - 0.5 * F.edge)
-                            continue; // not deeper than the cut left it, or too deep to be a lip crossing
-                        // Barycentric coordinates of the projection: over the face only.
-                        const core::Vec3 a = st.position_mm(std::size_t(g[0])), b = st.position_mm(std::size_t(g[1])),
-                                         c = st.position_mm(std::size_t(g[2]));
-                        const core::Vec3 q = p - F.n * d;
-                        const double wa = dot(cross(b - q, c - q), F.n) / F.area2, wb = dot(cross(c - q, a - q), F.n) / F.area2;
-                        const double wc = 1 - wa - wb;
-                        if (wa < 0 || wb < 0 || wc < 0)
-                            continue;
-                        const double w[3] = {wa, wb, wc};
-                        const double iv = inv[std::size_t(v)];
-                        double denom = iv;
-                        for (int j = 0; j < 3; ++j)
-                            denom += w[j] * w[j] * inv[std::size_t(g[std::size_t(j)])];
-                        if (!(denom > 0))
-                            continue;
-                        // Back to the allowed depth, shared in inverse proportion to the masses.
-                        const double lambda = (allowed - d) * 1e-3 / denom;
-                        double vrel = 0;
-                        for (std::size_t c3 = 0; c3 < 3; ++c3) {
-                            double vf = 0;
-                            for (int j = 0; j < 3; ++j)
-                                vf += w[j] * st.v[3 * std::size_t(g[std::size_t(j)]) + c3];
-                            vrel += (st.v[3 * std::size_t(v) + c3] - vf) * F.n[int(c3)];
-                        }
-                        const double mu = vrel < 0 ? -vrel / denom : 0; // inelastic: stop the approach
-                        for (std::size_t c3 = 0; c3 < 3; ++c3) {
-                            st.x[3 * std::size_t(v) + c3] += lambda * iv * F.n[int(c3)];
-                            st.v[3 * std::size_t(v) + c3] += mu * iv * F.n[int(c3)];
-                            for (int j = 0; j < 3; ++j) {
-                                const auto u = std::size_t(g[std::size_t(j)]);
-                                st.x[3 * u + c3] -= lambda * w[j] * inv[u] * F.n[int(c3)];
-                                st.v[3 * u + c3] -= mu * w[j] * inv[u] * F.n[int(c3)];
-                            }
-                        }
-                        ++count;
-                    }
-                }
+        if (dot(n, normal[std::size_t(slot)]) > -0.5 * norm(normal[std::size_t(slot)]))
+            continue;
+        const core::Vec3 p = st.position_mm(std::size_t(v));
+        const double d = dot(p - a, n);
+        if (d >= 0)
+            continue; // in front
+        const double edge = std::max({norm(b - a), norm(c - b), norm(a - c)});
+        // Snapping makes a cut surface zigzag by up to snap x the edge, so a vertex of one lip may
+        // lie behind a face of the other where the cut was made: that depth, from the rest shape,
+        // is allowed; only going deeper is a crossing.
+        const double allowed = std::min(0.0, rest_depth(model, v, g));
+        if (d >= allowed || d < allowed - 0.5 * edge)
+            continue; // not deeper than the cut left it, or too deep to be a lip crossing
+        // Barycentric coordinates of the projection: over the face only.
+        const core::Vec3 q = p - n * d;
+        const double wa = dot(cross(b - q, c - q), n) / area2, wb = dot(cross(c - q, a - q), n) / area2;
+        const double wc = 1 - wa - wb;
+        if (wa < 0 || wb < 0 || wc < 0)
+            continue;
+        const double w[3] = {wa, wb, wc};
+        const double iv = inv[std::size_t(v)];
+        double denom = iv;
+        for (int j = 0; j < 3; ++j)
+            denom += w[j] * w[j] * inv[std::size_t(g[std::size_t(j)])];
+        if (!(denom > 0))
+            continue;
+        // Back to the allowed depth, shared in inverse proportion to the masses.
+        const double lambda = (allowed - d) * 1e-3 / denom;
+        double vrel = 0;
+        for (std::size_t c3 = 0; c3 < 3; ++c3) {
+            double vf = 0;
+            for (int j = 0; j < 3; ++j)
+                vf += w[j] * st.v[3 * std::size_t(g[std::size_t(j)]) + c3];
+            vrel += (st.v[3 * std::size_t(v) + c3] - vf) * n[int(c3)];
+        }
+        const double mu = vrel < 0 ? -vrel / denom : 0; // inelastic: stop the approach
+        for (std::size_t c3 = 0; c3 < 3; ++c3) {
+            st.x[3 * std::size_t(v) + c3] += lambda * iv * n[int(c3)];
+            st.v[3 * std::size_t(v) + c3] += mu * iv * n[int(c3)];
+            for (int j = 0; j < 3; ++j) {
+                const auto u = std::size_t(g[std::size_t(j)]);
+                st.x[3 * u + c3] -= lambda * w[j] * inv[u] * n[int(c3)];
+                st.v[3 * u + c3] -= mu * w[j] * inv[u] * n[int(c3)];
+            }
+        }
+        ++count;
     }
     return count;
 }

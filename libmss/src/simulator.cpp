@@ -174,8 +174,10 @@ struct Simulator::Impl {
         tolerance = ts.tolerance * model.min_edge_length();
         if (params.integrator == Integrator::BackwardEuler)
             implicit = std::make_unique<detail::ImplicitSolver>(model, params);
-        if (!blades.empty())
+        if (!blades.empty()) {
             cutting.refresh_lips(model);
+            cutting.refresh_candidates(state);
+        }
         evaluate(state, force, energy);
         checkpoint();
     }
@@ -332,6 +334,8 @@ struct Simulator::Impl {
         if (changed) {
             ++stats.topology_changes;
             after_topology_change();
+        } else if (!blades.empty()) {
+            cutting.refresh_candidates(state); // the lips have moved since the last look
         }
         const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         stats.topology_seconds += secs;

@@ -47,6 +47,10 @@ public:
 
     // Rebuilds the list of cut faces (boundary faces with every vertex on a cut) after a change.
     void refresh_lips(const Model& model);
+    // Finds, for each lip vertex, the lip faces it could cross before the next refresh (within
+    // an edge, facing it): the per-step check then looks at these pairs only. Called after
+    // refresh_lips and at every topology update (every few ms of simulated time).
+    void refresh_candidates(const State& state);
     const std::vector<std::array<std::int32_t, 3>>& lips() const { return lips_; }
 
     // Follows a renumbering of the vertices (old, new), in order.
@@ -60,6 +64,7 @@ private:
     std::vector<std::int32_t> lip_vertices_;  // sorted
     std::vector<std::int32_t> ring_;          // per lip vertex: the vertices of its tets, sorted
     std::vector<std::size_t> ring_start_;
+    std::vector<std::pair<std::int32_t, std::int32_t>> candidates_; // (lip vertex slot, lip face)
     double max_edge_mm_ = 0;
 };
 
