@@ -43,7 +43,7 @@ Box bounds(const core::TetMesh& m)
 
 double fast(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d)
 {
-    return mesh::tet_measures(a, b, c, d, 1.0)[mesh::Measure::Fast];
+    return mesh::fast_measure(a, b, c, d);
 }
 
 struct Result {

@@ -304,6 +304,19 @@ double triangle_quality(const Vec3& a, const Vec3& b, const Vec3& c)
     return std::pow(4 * std::sqrt(3.0) * triangle_area(a, b, c) / sum_l2, 4);
 }
 
+double fast_measure(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d)
+{
+    // The same raw value as raw_measures, without the other measures' work (circumsphere,
+    // containment sphere, exact lambda_max): s (V / (sum l^2)^(3/2))^3, normalised like the rest.
+    const double v = core::signed_volume(a, b, c, d);
+    const double sum_l2 = dot(b - a, b - a) + dot(c - a, c - a) + dot(d - a, d - a) + dot(c - b, c - b) + dot(d - b, d - b) +
+                          dot(d - c, d - c);
+    if (!(sum_l2 > 0))
+        return 0;
+    const double raw = sign_of(v) * std::pow(std::abs(v) / std::pow(sum_l2, 1.5), 3);
+    return raw / normalisers().regular.v[int(Measure::Fast)];
+}
+
 TetMeasures tet_measures(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, double reference_edge,
                          const QualityParams& params)
 {

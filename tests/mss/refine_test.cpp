@@ -16,7 +16,7 @@ namespace {
 // The thesis's fast measure from libmesh, as lsim passes it (libmss does not link libmesh).
 double fast(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d)
 {
-    return mesh::tet_measures(a, b, c, d, 1.0)[mesh::Measure::Fast];
+    return mesh::fast_measure(a, b, c, d);
 }
 
 mss::Model block(int cells = 6)

@@ -34,7 +34,7 @@ const io::LabelTable kTissueTable = {{1, "liver"}, {2, "portal_vein"}, {3, "hepa
 // (libmss takes it as a function so that it need not link libmesh).
 double fast_quality(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d)
 {
-    return mesh::tet_measures(a, b, c, d, 1.0)[mesh::Measure::Fast];
+    return mesh::fast_measure(a, b, c, d);
 }
 
 // What a picture needs of the simulation at one frame: the boundary, coloured by tissue, and
