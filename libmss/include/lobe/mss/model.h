@@ -104,8 +104,8 @@ struct State {
     std::vector<core::Vec3> positions_mm() const;
 };
 
-//! Springs in structure-of-arrays layout, sorted by their first node (then the second) so that
-//! the force loop streams through memory.
+//! Springs in structure-of-arrays layout, built sorted by their first node (then the second) so
+//! that the force loop streams through memory; local edits append and move springs (Model::apply).
 struct Springs {
     std::vector<std::int32_t> a, b;  //!< node indices, a < b
     std::vector<double> rest_length; //!< [m]
