@@ -136,7 +136,8 @@ TEST(MssAccuracy, StaticSolverMatchesTheSimulatorsEquilibrium)
     mss::Simulator sim(m, sp);
     sim.advance_to(20);
     const double dynamic = tip_deflection(m, sim.state());
-    std::printf("HAVP cantilever n=2: Newton %.6f mm, backward Euler after 20 s %.6f mm\n", newton * 1e3, dynamic * 1e3);
+    std::printf("HAVP cantilever n=2: Newton %.6f mm, backward Euler after 20 s %.6f mm\n", newton * 1e3,
+                dynamic * 1e3);
     EXPECT_NEAR(dynamic, newton, 1e-3 * newton);
 }
 
@@ -151,8 +152,8 @@ TEST(MssAccuracy, StaticCompressionEveryLawAgainstAnalyticAndFem)
     std::printf("compression 1 %%, analytic %.5f N; force at 3 / 6 cells across [N] (vs linear FEM):\n", analytic);
     for (const auto& v : variants()) {
         const auto& f = force[v.name];
-        std::printf("  %-17s %.5f (%+6.1f %%)  %.5f (%+6.1f %%)\n", v.name.c_str(), f[0], (f[0] / fem[0] - 1) * 100, f[1],
-                    (f[1] / fem[1] - 1) * 100);
+        std::printf("  %-17s %.5f (%+6.1f %%)  %.5f (%+6.1f %%)\n", v.name.c_str(), f[0], (f[0] / fem[0] - 1) * 100,
+                    f[1], (f[1] / fem[1] - 1) * 100);
     }
     // FEM: the clamped ends stop the Poisson expansion near them, stiffening the 4:1 column by a
     // few per cent over E A strain; linear tets in pure compression are nearly exact, so the two
@@ -196,12 +197,14 @@ TEST(MssAccuracy, CantileverBendingEveryLawAgainstEulerBernoulliAndFem)
         for (int k = 0; k < 2; ++k)
             tip[v.name][std::size_t(k)] = cantilever_deflection(v, 2 * (k + 1));
     const auto& fem = tip["linear-fem"];
-    std::printf("cantilever, Euler-Bernoulli tip %.4f mm; at 2 / 4 cells across [mm] (vs EB, vs linear FEM)\n", kTip * 1e3);
+    std::printf("cantilever, Euler-Bernoulli tip %.4f mm; at 2 / 4 cells across [mm] (vs EB, vs linear FEM)\n",
+                kTip * 1e3);
     for (const auto& v : variants()) {
         const auto& d = tip[v.name];
         std::printf("  %-17s", v.name.c_str());
         for (int k = 0; k < 2; ++k)
-            std::printf("  %.4f (%+5.1f %%, %+5.1f %%)", d[k] * 1e3, (d[k] / kTip - 1) * 100, (d[k] / fem[k] - 1) * 100);
+            std::printf("  %.4f (%+5.1f %%, %+5.1f %%)", d[k] * 1e3, (d[k] / kTip - 1) * 100,
+                        (d[k] / fem[k] - 1) * 100);
         std::printf("\n");
     }
     // FEM: linear tets are too stiff in bending (shear locking), more so the fewer across the
@@ -225,10 +228,11 @@ TEST(MssAccuracy, CantileverBendingEveryLawAgainstEulerBernoulliAndFem)
     EXPECT_GT(tip["havp"][1], 0.90 * fem[1]);
     EXPECT_LT(tip["van-gelder"][1], fem[1]);
     EXPECT_GT(tip["van-gelder"][1], 0.85 * fem[1]);
-    // Constant and 1/l: k = E L_ref (L_ref = 10 mm, 4 to 8 times these edges) makes them an order
-    // of magnitude too stiff (measured 8.3 % and 2.3 % of the FEM deflection at 4 cells, 13 % and 7 % at 2); 1/l
-    // stiffens as the mesh refines (its modulus goes as 1/h^2, so the deflection would fall to a
-    // quarter when h halves, less the coarser mesh's stiffer surface layer: measured 0.43).
+    // Constant and 1/l: k = E L_ref with L_ref = 10 mm, 2 to 4 times these cells' edges, makes them
+    // an order of magnitude too stiff (measured 8.3 % and 2.3 % of the FEM deflection at 4 cells,
+    // 13 % and 7 % at 2); 1/l stiffens as the mesh refines (its modulus goes as 1/h^2, so the
+    // deflection would fall to a quarter when h halves, less the coarser mesh's stiffer surface
+    // layer: measured 0.43).
     for (const char* law : {"constant", "inverse-length"})
         for (int k = 0; k < 2; ++k)
             EXPECT_LT(tip[law][k], 0.15 * fem[k]) << law;

@@ -31,8 +31,8 @@ struct StaticParams {
 struct StaticResult {
     State state;
     int iterations = 0;
-    int jacobians = 0;  //!< stiffness matrices assembled
-    int colours = 0;    //!< colours of the last assembly (force evaluations per component)
+    int jacobians = 0;   //!< stiffness matrices assembled
+    int colours = 0;     //!< colours of the last assembly (force evaluations per component)
     double residual = 0; //!< largest free force at the end / at the start
     bool converged = false;
 };
