@@ -60,8 +60,7 @@ double compression_force(const Variant& v, int n)
     m.fix_box({-1, -1, 80 - 1e-6}, {21, 21, 81});
     mss::State s = m.rest_state();
     for (std::size_t i = 0; i < m.node_count(); ++i)
-        if (m.mesh().vertices[i].z > 80 - 1e-6)
-            s.x[3 * i + 2] *= 0.99;
+        s.x[3 * i + 2] *= 0.99; // uniform strain: the top plate's move, and a start near the solution
     const auto r = mss::statics::solve_static(m, s);
     EXPECT_TRUE(r.converged) << v.name << " n=" << n << " residual " << r.residual;
     std::vector<double> f;
