@@ -80,6 +80,18 @@ double heap_bytes()
     return double(mi.uordblks) + double(mi.hblkhd);
 }
 
+// The 1-minute load average, recorded with every row: this is a shared machine.
+double load_average()
+{
+    double load = -1;
+    if (FILE* f = std::fopen("/proc/loadavg", "r")) {
+        if (std::fscanf(f, "%lf", &load) != 1)
+            load = -1;
+        std::fclose(f);
+    }
+    return load;
+}
+
 double thread_cpu_seconds()
 {
     timespec ts{};
@@ -265,7 +277,7 @@ int main(int argc, char** argv)
     }
     std::fprintf(out, "mesh,nodes,tets,springs,config,run,threads,step_us_best,step_us_median,cpu_us_best,"
                       "steps_per_second,ns_per_spring,model_bytes_per_node,simulator_bytes_per_node,"
-                      "cg_iterations_per_step,factorizations_per_step,dt_s,cores_busy\n");
+                      "cg_iterations_per_step,factorizations_per_step,dt_s,cores_busy,load\n");
     for (int a = 2; a < argc; ++a) {
         const std::string path = argv[a];
         const core::TetMesh mesh = load(path);
@@ -293,15 +305,12 @@ int main(int argc, char** argv)
             const double timed = double(s1.steps - s0.steps);
             const double cg = double(s1.cg_iterations - s0.cg_iterations) / timed;
             const double fact = double(s1.factorizations - s0.factorizations) / timed;
-            auto row = [&](int threads, double wall_best, double wall_median, double cpu_best) {
-                std::fprintf(out, "%s,%zu,%zu,%zu,%s,single,%d,%.4f,%.4f,%.4f,%.2f,%.3f,%.0f,%.0f,%.1f,%.3f,%.6g,\n",
-                             name.c_str(), sim.model().node_count(), sim.model().tet_count(),
-                             sim.model().springs().size(), c.name, threads, wall_best * 1e6, wall_median * 1e6,
-                             cpu_best * 1e6, threads / cpu_best, cpu_best / springs * 1e9, (h1 - h0) / n, (h2 - h1) / n,
-                             cg, fact, sim.time_step());
-                std::fflush(out);
-            };
-            row(1, t.wall_best, t.wall_median, t.cpu_best);
+            std::fprintf(out, "%s,%zu,%zu,%zu,%s,single,1,%.4f,%.4f,%.4f,%.2f,%.3f,%.0f,%.0f,%.1f,%.3f,%.6g,,%.2f\n",
+                         name.c_str(), sim.model().node_count(), sim.model().tet_count(), sim.model().springs().size(),
+                         c.name, t.wall_best * 1e6, t.wall_median * 1e6, t.cpu_best * 1e6, 1 / t.cpu_best,
+                         t.cpu_best / springs * 1e9, (h1 - h0) / n, (h2 - h1) / n, cg, fact, sim.time_step(),
+                         load_average());
+            std::fflush(out);
             std::fprintf(stderr, "%s %s: %.1f us/step (median %.1f, cpu %.1f), %.0f + %.0f B/node\n", name.c_str(),
                          c.name, t.wall_best * 1e6, t.wall_median * 1e6, t.cpu_best * 1e6, (h1 - h0) / n,
                          (h2 - h1) / n);
@@ -327,10 +336,10 @@ int main(int argc, char** argv)
                 }
             }
             for (const auto& [threads, w, cpu] : {std::tuple{1, w1, c1}, std::tuple{2, w2, c2}})
-                std::fprintf(out, "%s,%zu,%zu,%zu,%s,concurrent,%d,%.4f,,%.4f,%.2f,%.3f,,,,,,%.3f\n", name.c_str(),
+                std::fprintf(out, "%s,%zu,%zu,%zu,%s,concurrent,%d,%.4f,,%.4f,%.2f,%.3f,,,,,,%.3f,%.2f\n", name.c_str(),
                              sim.model().node_count(), sim.model().tet_count(), sim.model().springs().size(), c.name,
                              threads, w / double(steps) * 1e6, cpu / threads / double(steps) * 1e6,
-                             threads * double(steps) / w, w / double(steps) / springs * 1e9, cpu / w);
+                             threads * double(steps) / w, w / double(steps) / springs * 1e9, cpu / w, load_average());
             std::fflush(out);
             std::fprintf(
                 stderr,

@@ -5,7 +5,8 @@
 #   bash bench/mss/run.sh     -> docs/benchmarks/mss_accuracy.{csv,png}, mss_scaling.{csv,png}
 # BIN=dir: lphantom and lmesh (default build/tools); BENCH=dir: the benchmarks (default
 # build-bench/bench); OUT_DIR=dir: where the CSV and PNG go; MESHES=dir keeps the liver meshes
-# there (default: a temporary folder); ONLY=accuracy|scaling runs one half.
+# there (default: a temporary folder); ONLY=accuracy|scaling runs one half; REPEAT=n runs the
+# speed benchmark n times and keeps, per row, the run with the least CPU time (merge_runs.py).
 # OMP_NUM_THREADS=1: Debian's CHOLMOD links libgomp; every single-simulation figure is one thread.
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -15,7 +16,7 @@ out="${OUT_DIR:-$repo/docs/benchmarks}"
 only="${ONLY:-}"
 export OMP_NUM_THREADS=1
 mkdir -p "$out"
-echo "machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) CPUs; load average $(cut -d' ' -f1-3 /proc/loadavg)" >&2
+echo "machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc --all) CPUs; load average $(cut -d' ' -f1-3 /proc/loadavg)" >&2
 
 if [ "$only" != scaling ]; then
   "$bench/mss_accuracy" "$out/mss_accuracy.csv"
@@ -46,5 +47,10 @@ done
 # springs-only and HAVP steps (the order's effect, and the earlier cube figures in the same run).
 for f in "${files[@]}"; do files+=("$f+morton"); done
 files+=(cube:10 cube:20 cube:45)
-"$bench/mss_scaling" "$out/mss_scaling.csv" "${files[@]}"
+runs=()
+for k in $(seq "${REPEAT:-1}"); do
+  "$bench/mss_scaling" "$meshes/scaling.$k.csv" "${files[@]}"
+  runs+=("$meshes/scaling.$k.csv")
+done
+/usr/bin/python3 "$repo/bench/mss/merge_runs.py" "$out/mss_scaling.csv" "${runs[@]}"
 /usr/bin/python3 "$repo/bench/mss/plot_scaling.py" "$out/mss_scaling.csv" "$out/mss_scaling.png"
