@@ -13,11 +13,11 @@ import sys
 
 def main():
     out, runs = sys.argv[1], sys.argv[2:]
-    tables = []
+    tables, fields = [], []
     for k, path in enumerate(runs, 1):
         with open(path, newline="") as f:
             reader = csv.DictReader(f)
-            fields = reader.fieldnames
+            fields += [name for name in reader.fieldnames if name not in fields]
             tables.append([dict(r, source_run=str(k)) for r in reader])
     order, best, pairs = [], {}, {}
     for rows in tables:
@@ -36,7 +36,7 @@ def main():
                 if mate and (key not in pairs or float(r["cores_busy"]) > float(pairs[key][1]["cores_busy"])):
                     pairs[key] = (mate[0], r)
     with open(out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields + ["source_run"])
+        w = csv.DictWriter(f, fieldnames=fields + ["source_run"], restval="")
         w.writeheader()
         for key in order:
             if key[2] == "single":
