@@ -3,12 +3,17 @@
 
     /usr/bin/python3 bench/mss/merge_runs.py OUT.csv RUN1.csv RUN2.csv ...
 
-Single-simulation rows: the run with the least CPU time per step for each (mesh, config). Two
+Single-simulation rows: the run with the least CPU time per step for each (mesh, config); a
+failure (status column) only when every run failed. Two
 simulations against one: both rows of the run in which the pair got the most CPU (cores_busy),
 i.e. the quietest moment. A column `run` gives the run each row comes from (1-based).
 """
 import csv
 import sys
+
+
+def cost(row):
+    return float(row["cpu_us_best"]) if row["cpu_us_best"] else float("inf")
 
 
 def main():
@@ -25,8 +30,8 @@ def main():
             key = (r["mesh"], r["config"], r["run"])
             if key not in order:
                 order.append(key)
-            if r["run"] == "single":
-                if key not in best or float(r["cpu_us_best"]) < float(best[key]["cpu_us_best"]):
+            if r["run"] == "single":  # a failed run (no time) is kept only if every run failed
+                if key not in best or cost(r) < cost(best[key]):
                     best[key] = r
         for r in rows:
             if r["run"] == "concurrent" and r["threads"] == "2":

@@ -24,6 +24,11 @@ COLOURS = {"constant": "tab:orange", "inverse-length": "tab:red", "van-gelder": 
 STYLES = {"symplectic": ("-", "o"), "verlet": (":", "s"), "implicit-cg": ("--", "^"), "implicit-cholmod": ("-.", "D")}
 
 
+def family(mesh):
+    """lmesh's liver as written, the same renumbered along a Morton curve, or mss_bench's cube."""
+    return "cube" if mesh.startswith("cube:") else "morton" if mesh.endswith("+morton") else "liver"
+
+
 def style(config):
     integrator, law = config.split("/")
     line, marker = STYLES[integrator]
@@ -35,18 +40,30 @@ def main():
     dst = sys.argv[2] if len(sys.argv) > 2 else os.path.splitext(src)[0] + ".png"
     with open(src, newline="") as f:
         rows = list(csv.DictReader(f))
-    single = [r for r in rows if r["run"] == "single"]
+    single = [r for r in rows if r["run"] == "single" and r.get("status") in (None, "", "ok")]
     configs = list(dict.fromkeys(r["config"] for r in single))
 
-    def series(config, key, pool=single):
-        pts = sorted((r for r in pool if r["config"] == config and r[key]), key=lambda r: int(r["nodes"]))
+    def series(config, key, fam="liver"):
+        pts = sorted((r for r in single if r["config"] == config and r[key] and family(r["mesh"]) == fam),
+                     key=lambda r: int(r["nodes"]))
         return [int(r["nodes"]) for r in pts], [float(r[key]) for r in pts]
+
+    def others(ax, key, scale=1.0):
+        """The renumbered liver meshes and the cubes, for the two explicit spring configurations."""
+        for c in ("symplectic/van-gelder", "symplectic/havp"):
+            st = style(c)
+            for fam, line, label in (("morton", (0, (1, 1)), "Morton order"), ("cube", (0, (5, 1, 1, 1)), "cube")):
+                x, y = series(c, key, fam)
+                if x:
+                    ax.plot(x, [v * scale for v in y], color=st["color"], linestyle=line, marker=st["marker"],
+                            markerfacecolor="none", markersize=6, label="%s, %s" % (c, label))
 
     fig, axes = plt.subplots(2, 2, figsize=(15, 12))
     ax = axes[0][0]
     for c in configs:
         x, y = series(c, "cpu_us_best")
         ax.plot(x, [v / 1e3 for v in y], label=c, markersize=5, **style(c))
+    others(ax, "cpu_us_best", 1e-3)
     nodes = sorted({int(r["nodes"]) for r in single})
     ax.plot(nodes, [n * 270 / 12e9 * 1e3 for n in nodes], color="purple", linewidth=2, alpha=0.4,
             label="DRAM floor: 270 B/node at 12 GB/s (issue)")
@@ -56,7 +73,8 @@ def main():
     ax.set_yscale("log")
     ax.set_xlabel("nodes (log)")
     ax.set_ylabel("CPU time per step [ms] (log; one thread)")
-    ax.set_title("time per step")
+    ax.set_title("time per step (lmesh's node order; hollow: renumbered along a Morton curve, and cubes)",
+                 fontsize=9)
     ax.legend(fontsize=7, ncol=2)
 
     ax = axes[0][1]
@@ -65,6 +83,7 @@ def main():
             continue
         x, y = series(c, "ns_per_spring")
         ax.plot(x, y, label=c, markersize=5, **style(c))
+    others(ax, "ns_per_spring")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("nodes (log)")
@@ -85,7 +104,7 @@ def main():
     ax.legend(fontsize=7, ncol=2)
 
     ax = axes[1][1]
-    conc = [r for r in rows if r["run"] == "concurrent"]
+    conc = [r for r in rows if r["run"] == "concurrent" and family(r["mesh"]) == "liver"]
     for c in dict.fromkeys(r["config"] for r in conc):
         pts = {}
         for r in conc:
@@ -114,7 +133,8 @@ def main():
     ax.legend(fontsize=7)
     for a in axes.flat:
         a.grid(True, which="both", alpha=0.3)
-    fig.suptitle("libmss step on lphantom liver meshes (lmesh), shared 2-core VM (mss_scaling)")
+    fig.suptitle("libmss step on lphantom liver meshes (lmesh), shared 2-core VM under load: CPU time, "
+                 "least of repeated runs (mss_scaling)")
     fig.tight_layout()
     fig.savefig(dst, dpi=100)
     print("wrote", dst)
