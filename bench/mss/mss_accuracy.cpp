@@ -1,0 +1,204 @@
+// Static error against time per step (issue 7, "chart error against time per step"): for every
+// stiffness law and both FEM formulations, at several resolutions, in one run, the static error
+// of a 1 % compression of a clamped column and of a cantilever bent by its own weight (the
+// problems of tests/mss/accuracy_test.cpp, made finer), and the cost of one explicit step on the
+// same mesh.
+//
+//   build-bench/bench/mss_accuracy [OUT.csv]     (default: stdout)
+//   /usr/bin/python3 bench/mss/plot_accuracy.py OUT.csv OUT.png
+//
+// Equilibria come from tests/mss/statics.h (Newton on Model::forces). Time per step: one
+// Simulator::step() (symplectic Euler, critical policy, alpha = 0.2, damping 0.1), the best of 5
+// batches of at least 0.1 s of thread CPU time each, so that other users of the machine cost as
+// little as possible.
+#include "mss/statics.h"
+
+#include "lobe/mss/block_mesh.h"
+#include "lobe/mss/simulator.h"
+
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <vector>
+
+using namespace lobe;
+
+namespace {
+
+constexpr double kE = 11000, kRho = 1060;
+constexpr double kBeamL = 0.08, kBeamB = 0.01, kTip = 4e-4; // Euler-Bernoulli tip deflection [m]
+
+struct Variant {
+    const char* name;
+    mss::Formulation formulation;
+    mss::Stiffness stiffness;
+};
+constexpr Variant kVariants[] = {
+    {"linear-fem", mss::Formulation::LinearFem, mss::Stiffness::VanGelder},
+    {"corotational-fem", mss::Formulation::CorotationalFem, mss::Stiffness::VanGelder},
+    {"constant", mss::Formulation::MassSpring, mss::Stiffness::Constant},
+    {"inverse-length", mss::Formulation::MassSpring, mss::Stiffness::InverseLength},
+    {"van-gelder", mss::Formulation::MassSpring, mss::Stiffness::VanGelder},
+    {"havp", mss::Formulation::MassSpring, mss::Stiffness::Havp},
+};
+
+mss::ModelParams params(const Variant& v)
+{
+    mss::ModelParams mp;
+    mp.formulation = v.formulation;
+    mp.stiffness = v.stiffness;
+    mp.tissues = {{1, kE, kRho}};
+    return mp;
+}
+
+// The prepared problem: a model with its fixed nodes and the state to start from.
+struct Problem {
+    mss::Model model;
+    mss::State start;
+};
+
+// 20 x 20 x 80 mm column, n x n x 4n cells, ends clamped, top moved down 1 %.
+Problem column(const Variant& v, int n)
+{
+    mss::BlockMeshParams bp;
+    bp.cells = {n, n, 4 * n};
+    bp.size = {20, 20, 80};
+    bp.tets_per_cell = 5;
+    mss::Model m(mss::make_block_mesh(bp), params(v));
+    m.fix_box({-1, -1, -1}, {21, 21, 1e-6});
+    m.fix_box({-1, -1, 80 - 1e-6}, {21, 21, 81});
+    mss::State s = m.rest_state();
+    for (std::size_t i = 0; i < m.node_count(); ++i)
+        s.x[3 * i + 2] *= 0.99; // uniform strain: the top plate's move, and a start near the solution
+    return {std::move(m), std::move(s)};
+}
+
+// 80 x 10 x 10 mm beam along x, 8n x n x n cells, clamped at x = 0, gravity along -z scaled to
+// an Euler-Bernoulli tip deflection of 0.4 mm.
+Problem beam(const Variant& v, int n)
+{
+    mss::BlockMeshParams bp;
+    bp.cells = {8 * n, n, n};
+    bp.size = {80, 10, 10};
+    bp.tets_per_cell = 5;
+    mss::ModelParams mp = params(v);
+    const double area = kBeamB * kBeamB, inertia = area * area / 12;
+    mp.gravity = {0, 0, -8 * kE * inertia * kTip / (kRho * area * kBeamL * kBeamL * kBeamL * kBeamL)};
+    mss::Model m(mss::make_block_mesh(bp), mp);
+    m.fix_box({-1, -1, -1}, {1e-6, 11, 11});
+    mss::State s = m.rest_state();
+    return {std::move(m), std::move(s)};
+}
+
+double compression_force(const mss::Model& m, const mss::State& s)
+{
+    std::vector<double> f;
+    m.forces(s, f);
+    double push = 0;
+    for (std::size_t i = 0; i < m.node_count(); ++i)
+        if (m.mesh().vertices[i].z > 80 - 1e-6)
+            push += f[3 * i + 2];
+    return push;
+}
+
+double tip_deflection(const mss::Model& m, const mss::State& s)
+{
+    double sum = 0;
+    int count = 0;
+    for (std::size_t i = 0; i < m.node_count(); ++i)
+        if (m.mesh().vertices[i].x > 80 - 1e-6) {
+            sum += m.rest_positions()[3 * i + 2] - s.x[3 * i + 2];
+            ++count;
+        }
+    return sum / count;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0)
+{
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double thread_cpu_seconds()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+// Seconds per explicit step from `start`: the best of 5 batches of >= 0.1 s of this thread's CPU
+// time (time spent descheduled by other users' jobs is not counted; their cache traffic is).
+double time_per_step(const Problem& p, double& dt)
+{
+    mss::SimulatorParams sp;
+    sp.time_step.policy = mss::StepPolicy::Critical;
+    mss::Simulator sim(p.model, sp);
+    sim.set_state(p.start);
+    dt = sim.time_step();
+    for (int i = 0; i < 20; ++i)
+        sim.step();
+    double best = std::numeric_limits<double>::infinity();
+    for (int batch = 0; batch < 5; ++batch) {
+        const double t0 = thread_cpu_seconds();
+        long steps = 0;
+        double t = 0;
+        do {
+            for (int i = 0; i < 10; ++i)
+                sim.step();
+            steps += 10;
+            t = thread_cpu_seconds() - t0;
+        } while (t < 0.1);
+        best = std::min(best, t / double(steps));
+    }
+    return best;
+}
+
+} // namespace
+
+int main(int argc, char** argv)
+{
+    FILE* out = argc > 1 ? std::fopen(argv[1], "w") : stdout;
+    if (!out) {
+        std::perror(argv[1]);
+        return 2;
+    }
+    std::fprintf(out, "problem,variant,cells_across,nodes,springs,tets,value,analytic,error_vs_analytic,linear_fem,"
+                      "error_vs_linear_fem,newton_iterations,jacobians,colours,residual,static_seconds,step_us,dt_s,"
+                      "cpu_per_simulated_second\n");
+    const double analytic_force = kE * 400e-6 * 0.01;
+    for (const char* problem : {"compression", "cantilever"}) {
+        const bool compression = std::string(problem) == "compression";
+        for (int n : {2, 3, 4, 6, 8}) {
+            double fem = 0;
+            for (const auto& v : kVariants) {
+                const Problem p = compression ? column(v, n) : beam(v, n);
+                const auto t0 = std::chrono::steady_clock::now();
+                const auto r = mss::statics::solve_static(p.model, p.start);
+                const double t_static = seconds_since(t0);
+                const double value =
+                    compression ? compression_force(p.model, r.state) : tip_deflection(p.model, r.state);
+                if (v.formulation == mss::Formulation::LinearFem)
+                    fem = value;
+                const double analytic = compression ? analytic_force : kTip;
+                double dt = 0;
+                const double step = time_per_step(p, dt);
+                std::fprintf(out, "%s,%s,%d,%zu,%zu,%zu,%.8g,%.8g,%.6f,%.8g,%.6f,%d,%d,%d,%.3g,%.3f,%.3f,%.6g,%.4f\n",
+                             problem, v.name, n, p.model.node_count(), p.model.springs().size(), p.model.tet_count(),
+                             value, analytic, value / analytic - 1, fem, value / fem - 1, r.iterations, r.jacobians,
+                             r.colours, r.residual, t_static, step * 1e6, dt, step / dt);
+                std::fflush(out);
+                std::fprintf(stderr, "%s n=%d %-17s %.5g (%+.1f %% analytic, %+.1f %% FEM) %s, %.1f us/step\n", problem,
+                             n, v.name, value, (value / analytic - 1) * 100, (value / fem - 1) * 100,
+                             r.converged ? "converged" : "NOT CONVERGED", step * 1e6);
+                std::fprintf(stderr, "    newton %d iterations, %d jacobians, residual %.2g, last step %.2g\n",
+                             r.iterations, r.jacobians, r.residual, r.last_step);
+            }
+        }
+    }
+    if (out != stdout)
+        std::fclose(out);
+    return 0;
+}
