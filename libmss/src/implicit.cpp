@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 namespace lobe::mss::detail {
@@ -255,9 +256,12 @@ struct ImplicitSolver::Impl {
             sol = cg.solveWithGuess(rhs, guess);
             iterations = int(cg.iterations());
             if (cg.info() != Eigen::Success)
-                throw core::SolverError("backward Euler: conjugate gradients did not reach the tolerance " +
-                                        std::to_string(params.cg_tolerance) + " in " + std::to_string(iterations) +
-                                        " iterations");
+            {
+                char tol[32];
+                std::snprintf(tol, sizeof tol, "%.3g", params.cg_tolerance);
+                throw core::SolverError(std::string("backward Euler: conjugate gradients did not reach the tolerance ") +
+                                        tol + " in " + std::to_string(iterations) + " iterations");
+            }
             guess = sol;
         }
         if (!sol.allFinite())
