@@ -1521,4 +1521,25 @@ PhantomResult generate_phantom(const PhantomParams& params)
     return res;
 }
 
+core::CentrelineGraph truth_graph(const PhantomTruth& truth)
+{
+    core::CentrelineGraph g;
+    for (const auto& n : truth.vessel_nodes)
+        g.nodes.push_back({n.position, n.radius_mm});
+    for (const auto& e : truth.vessel_edges) {
+        core::CentrelineEdge ce;
+        ce.from = e.from;
+        ce.to = e.to;
+        ce.level = e.level;
+        ce.label = e.tree == VesselTree::Portal ? kPortalVein : kHepaticVein;
+        ce.radius_mm = e.radius_mm;
+        ce.length_mm = e.length_mm;
+        ce.points = {truth.vessel_nodes[static_cast<std::size_t>(e.from)].position,
+                     truth.vessel_nodes[static_cast<std::size_t>(e.to)].position};
+        ce.point_radius = {e.radius_mm, e.radius_mm};
+        g.edges.push_back(std::move(ce));
+    }
+    return g;
+}
+
 } // namespace lobe::phantom
