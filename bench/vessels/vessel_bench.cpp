@@ -36,6 +36,7 @@ std::vector<std::string> split(const std::string& s)
 struct Input {
     std::string name;
     phantom::PhantomParams params;
+    double gap_fraction = -1; //!< >= 0: a contrast gap on portal edge 6 (level 3)
 };
 
 Input make_input(const std::string& name)
@@ -56,6 +57,14 @@ Input make_input(const std::string& name)
         in.params.spacing = {1.4, 1.4, 2.5};
         in.params.size = phantom::size_for_spacing(in.params.spacing);
         in.params.seed = 3;
+    } else if (name == "gap35" || name == "gap0") {
+        // a 5 mm stretch of a level-3 portal branch with 35 % (or no) contrast
+        in.gap_fraction = name == "gap35" ? 0.35 : 0.0;
+    } else if (name == "invisible") {
+        // no contrast: vessels at the liver's HU
+        in.params.hu.portal_vein = in.params.hu.hepatic_vein = in.params.hu.liver;
+    } else if (name == "novessels") {
+        in.params.vessels = false;
     } else if (name == "noisy") {
         // a low-dose scan: twice the noise
         in.params.noise_sigma_hu = 25;
@@ -74,18 +83,10 @@ seg::VesselParams variant(const std::string& v)
         p.use_vesselness = false;
     } else if (v == "no-sharpening") {
         p.use_directional_sharpening = false;
-    } else if (v == "axial-only") {
-        p.sharpening.sharpen_max = 0;
-    } else if (v == "sharpen-0.5") {
-        p.sharpening.sharpen_max = 0.5;
-    } else if (v == "axial-1.5") {
-        p.sharpening.sharpen_max = 0;
-        p.sharpening.half_length_mm = 1.5;
-    } else if (v == "spur5") {
-        p.sharpening.sharpen_max = 0;
-        p.sharpening.half_length_mm = 1.5;
-        p.centreline.min_spur_mm = 5;
-        p.centreline.spur_radius_factor = 2;
+    } else if (v == "tan-kernel") {
+        p.sharpening.sharpen_max = 0.75;
+    } else if (v == "axial-3") {
+        p.sharpening.half_length_mm = 3;
     } else if (v == "no-fc") {
         p.use_fuzzy_connectedness = false;
     } else if (v == "no-lut") {
@@ -150,7 +151,11 @@ int main(int argc, char** argv)
     for (const auto& name : inputs) {
         const Input in = make_input(name);
         const auto t0 = std::chrono::steady_clock::now();
-        const phantom::PhantomResult ph = phantom::generate_phantom(in.params);
+        phantom::PhantomResult ph = phantom::generate_phantom(in.params);
+        if (in.gap_fraction >= 0) {
+            const auto& e = ph.truth.vessel_edges[6];
+            phantom::add_vessel_gap(ph, in.params, 6, 0.5 * e.length_mm - 2.5, 5.0, in.gap_fraction);
+        }
         std::cerr << name << ": phantom " << ph.ct.size[0] << "x" << ph.ct.size[1] << "x" << ph.ct.size[2] << " in "
                   << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s\n";
         const core::ImageF hu = [&] {
@@ -228,6 +233,23 @@ int main(int argc, char** argv)
                         std::fprintf(stderr, "  edge %d->%d L%d lab%d %s r=%.1f len=%.1f (%.0f,%.0f,%.0f)->(%.0f,%.0f,%.0f)\n", e.from, e.to,
                                      e.level, e.label, e.name.c_str(), e.radius_mm, e.length_mm, a.x, a.y, a.z, b.x, b.y, b.z);
                     }
+                if (in.gap_fraction >= 0) {
+                    // the subtree beyond the gap: edge 6's distal half and its children 16, 17
+                    core::CentrelineGraph distal = truth;
+                    distal.edges.clear();
+                    for (int id : {6, 16, 17}) {
+                        auto ed = truth.edges[std::size_t(id)];
+                        if (id == 6) {
+                            const auto a = ed.points[0], b = ed.points[1];
+                            ed.points[0] = a + (b - a) * (0.5 + 3.0 / ed.length_mm);
+                        }
+                        distal.edges.push_back(ed);
+                    }
+                    const auto dv = seg::evaluate_centrelines(res.graph, distal, &liver);
+                    int lv16 = -1;
+                    std::cerr << "  distal recall " << dv.overall.recall() << " level agreement " << dv.level_agreement << "\n";
+                    (void)lv16;
+                }
                 for (const auto& l : ev.by_tree_level)
                     std::cerr << "  truth label " << l.label << " level " << l.level << ": " << l.found << "/" << l.samples
                               << " labelled right " << l.labelled_right << "\n";

@@ -50,6 +50,7 @@ void check_params(const VesselParams& p)
     nonneg(p.root_surface_mm, "root_surface_mm");
     nonneg(p.root_separation_mm, "root_separation_mm");
     nonneg(p.min_branch_mm, "min_branch_mm");
+    nonneg(p.root_radius_fraction, "root_radius_fraction");
     nonneg(p.min_tree_length_mm, "min_tree_length_mm");
     nonneg(p.tree_separation, "tree_separation");
     if (!(p.link_threshold > 0 && p.link_threshold < 1))
@@ -466,17 +467,27 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
     // The roots of a connected part: its thickest surface point, and any other surface point at
     // least half as thick and root_separation_mm away from the roots so far (trees that touch).
     // None: the part is a fragment (cut off by a gap), rooted at its thickest end.
+    double trunk_radius = 0; // the thickest vessel anywhere: roots are trunks
+    for (const auto& nodes : graph_components(graph))
+        trunk_radius = std::max(trunk_radius, max_radius(nodes));
     auto roots_of = [&](const std::vector<int>& nodes) {
-        const auto sps = surface_points(nodes);
+        auto sps = surface_points(nodes);
         const double rmax = max_radius(nodes);
+        // Thick enough to be a trunk; of those, the point nearest the surface first (where the
+        // trunk leaves), then any other such point root_separation_mm away from the roots so far.
+        std::vector<SurfacePoint> thick;
+        for (const auto& sp : sps)
+            if (sp.radius >= 0.5 * rmax && sp.radius >= params.root_radius_fraction * trunk_radius)
+                thick.push_back(sp);
+        auto pos = [&](const SurfacePoint& sp) { return graph.edges[std::size_t(sp.edge)].points[sp.point]; };
+        std::stable_sort(thick.begin(), thick.end(), [&](const SurfacePoint& a, const SurfacePoint& b) {
+            return surface_depth(pos(a)) - a.radius < surface_depth(pos(b)) - b.radius;
+        });
         std::vector<SurfacePoint> roots;
-        for (const auto& sp : sps) {
-            if (sp.radius < 0.5 * rmax)
-                break;
-            const core::Vec3 p = graph.edges[std::size_t(sp.edge)].points[sp.point];
+        for (const auto& sp : thick) {
             bool far = true;
             for (const auto& r : roots)
-                far = far && core::distance(p, graph.edges[std::size_t(r.edge)].points[r.point]) > params.root_separation_mm;
+                far = far && core::distance(pos(sp), pos(r)) > params.root_separation_mm;
             if (far)
                 roots.push_back(sp);
         }
@@ -516,11 +527,22 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
                 if (root < 0 || inc[std::size_t(root)].size() != 1)
                     continue;
                 const core::Vec3 rp = graph.nodes[std::size_t(root)].position;
-                // Outward direction at the root: from a point a few mm into the part to the root.
-                const auto& re = graph.edges[std::size_t(inc[std::size_t(root)][0])];
-                const std::size_t back = std::min<std::size_t>(4, re.points.size() - 1);
-                const core::Vec3 inward = re.from == root ? re.points[back] : re.points[re.points.size() - 1 - back];
-                const core::Vec3 out_dir = core::normalized(rp - inward);
+                // Outward direction at the root: from the part's centre line 3-8 mm away (robust
+                // to a small fork at the end) to the root.
+                core::Vec3 inward{0, 0, 0};
+                int n_in = 0;
+                for (const auto& ed : graph.edges)
+                    if (comp_of[std::size_t(ed.from)] == int(c))
+                        for (const auto& q : ed.points) {
+                            const double d = core::distance(q, rp);
+                            if (d >= 3.0 && d <= 8.0) {
+                                inward += q;
+                                ++n_in;
+                            }
+                        }
+                if (n_in == 0)
+                    continue;
+                const core::Vec3 out_dir = core::normalized(rp - inward / n_in);
                 double best = params.max_gap_mm;
                 int best_edge = -1;
                 std::size_t best_point = 0;
@@ -534,7 +556,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
                         if (dist >= best)
                             continue;
                         if (dist > 1e-6 && core::dot(d, out_dir) < 0.5 * dist)
-                            continue; // not within 60 degrees of straight ahead
+                            continue; // not within 60 degrees of straight ahead: a gap does not turn
                         best = dist;
                         best_edge = int(e);
                         best_point = p;

@@ -58,7 +58,7 @@ struct VesselParams {
     double object_level = 0.5;      //!< the vessel boundary: where the feature crosses this fraction
                                     //!< of the contrast above parenchyma (half maximum, the
                                     //!< partial-volume boundary of a blurred edge)
-    double gradient_width_mm = 2.0; //!< h2's σ is C / this [image units per mm]: a step of the
+    double gradient_width_mm = 1.0; //!< h2's σ is C / this [image units per mm]: a step of the
                                     //!< full contrast over this width halves the affinity (about)
     int connectivity = 6;           //!< adjacency of the fuzzy connectedness (6 or 26)
     bool lookup_table = true;       //!< the lookup-table affinity (same result, ~2x faster)
@@ -73,6 +73,10 @@ struct VesselParams {
     //! A tree leaves the liver where its centre line comes within its radius + this of the liver
     //! surface (thinning stops about one radius short of a cut end) [mm]
     double root_surface_mm = 2.0;
+    //! ... and only where it is at least this fraction of the thickest vessel found as thick: a
+    //! tree's root is a trunk; a part that reaches the surface only with thin branches is a
+    //! fragment cut off by a gap.
+    double root_radius_fraction = 0.5;
     //! Two thick roots farther apart than this in one connected part are two trees that touch
     //! (the part is cut at the dimmest point of the path between them) [mm].
     double root_separation_mm = 30.0;
