@@ -153,11 +153,11 @@ FuzzyConnectednessResult fuzzy_connectedness(const core::ImageF& feature, const 
         q.assign(total, 0);
         for (std::size_t p = 0; p < total; ++p)
             if (in[p])
-                q[p] = static_cast<std::uint16_t>(std::min<double>(
-                    nq - 1, std::lround((static_cast<double>(f[p]) - fmin) / params.lut_step)));
+                q[p] = static_cast<std::uint16_t>(
+                    std::min(nq - 1, std::round((static_cast<double>(f[p]) - static_cast<double>(fmin)) / params.lut_step)));
         t1.resize(2 * nqs - 1);
         for (std::size_t s = 0; s < t1.size(); ++s)
-            t1[s] = static_cast<float>(h1(ap, fmin + 0.5 * static_cast<double>(s) * params.lut_step));
+            t1[s] = static_cast<float>(h1(ap, static_cast<double>(fmin) + 0.5 * static_cast<double>(s) * params.lut_step));
         t2.resize(distances.size());
         for (std::size_t t = 0; t < distances.size(); ++t) {
             t2[t].resize(nqs);
@@ -195,8 +195,8 @@ FuzzyConnectednessResult fuzzy_connectedness(const core::ImageF& feature, const 
                     mu = static_cast<double>(t1[static_cast<std::size_t>(a + b)]) *
                          static_cast<double>(t2[static_cast<std::size_t>(nb.table)][static_cast<std::size_t>(std::abs(a - b))]);
                 } else {
-                    mu = h1(ap, 0.5 * (static_cast<double>(f[v]) + f[w])) *
-                         h2(ap, std::abs(static_cast<double>(f[v]) - f[w]) / nb.distance_mm);
+                    const double fv = static_cast<double>(f[v]), fw = static_cast<double>(f[w]);
+                    mu = h1(ap, 0.5 * (fv + fw)) * h2(ap, std::abs(fv - fw) / nb.distance_mm);
                 }
                 const int lv = std::min(cur, static_cast<int>(mu * top));
                 if (lv > K[w] && lv >= min_level && lv > 0) {

@@ -75,14 +75,15 @@ Hessian hessian_at(const core::ImageF& f, int i, int j, int k, double s2)
     const int jm = std::max(j - 1, 0), jp = std::min(j + 1, ny - 1);
     const int km = std::max(k - 1, 0), kp = std::min(k + 1, nz - 1);
     const double hx = f.spacing[0], hy = f.spacing[1], hz = f.spacing[2];
-    const double c = f.at(i, j, k);
+    auto at = [&](int a, int b, int d) { return static_cast<double>(f.at(a, b, d)); };
+    const double c = at(i, j, k);
     Hessian h{};
-    h.xx = (f.at(ip, j, k) - 2 * c + f.at(im, j, k)) / (hx * hx);
-    h.yy = (f.at(i, jp, k) - 2 * c + f.at(i, jm, k)) / (hy * hy);
-    h.zz = (f.at(i, j, kp) - 2 * c + f.at(i, j, km)) / (hz * hz);
-    h.xy = (f.at(ip, jp, k) - f.at(ip, jm, k) - f.at(im, jp, k) + f.at(im, jm, k)) / (4 * hx * hy);
-    h.xz = (f.at(ip, j, kp) - f.at(ip, j, km) - f.at(im, j, kp) + f.at(im, j, km)) / (4 * hx * hz);
-    h.yz = (f.at(i, jp, kp) - f.at(i, jp, km) - f.at(i, jm, kp) + f.at(i, jm, km)) / (4 * hy * hz);
+    h.xx = (at(ip, j, k) - 2 * c + at(im, j, k)) / (hx * hx);
+    h.yy = (at(i, jp, k) - 2 * c + at(i, jm, k)) / (hy * hy);
+    h.zz = (at(i, j, kp) - 2 * c + at(i, j, km)) / (hz * hz);
+    h.xy = (at(ip, jp, k) - at(ip, jm, k) - at(im, jp, k) + at(im, jm, k)) / (4 * hx * hy);
+    h.xz = (at(ip, j, kp) - at(ip, j, km) - at(im, j, kp) + at(im, j, km)) / (4 * hx * hz);
+    h.yz = (at(i, jp, kp) - at(i, jp, km) - at(i, jm, kp) + at(i, jm, km)) / (4 * hy * hz);
     h.xx *= s2;
     h.yy *= s2;
     h.zz *= s2;
@@ -197,7 +198,7 @@ VesselnessResult vesselness(const core::ImageF& image, const VesselnessParams& p
             const double rb = std::abs(l[0]) / std::sqrt(std::abs(l[1] * l[2]));
             const double s = l[0] * l[0] + l[1] * l[1] + l[2] * l[2];
             const double v = (1 - std::exp(-ra * ra / a2)) * std::exp(-rb * rb / b2) * (1 - std::exp(-s / c2));
-            if (v > best[u]) {
+            if (v > static_cast<double>(best[u])) {
                 best[u] = static_cast<float>(v);
                 best_scale[u] = static_cast<float>(sigma);
                 const auto e = eigenvector_sym3(h.xx, h.yy, h.zz, h.xy, h.xz, h.yz, l[0]);
@@ -239,19 +240,21 @@ DirectionalSharpeningResult directional_sharpening(const core::ImageF& image, co
 #pragma omp parallel for schedule(dynamic, 4096)
     for (Index s = 0; s < n; ++s) {
         const std::size_t u = static_cast<std::size_t>(s);
-        if (!(v.vesselness.data[u] >= params.min_vesselness) || v.vesselness.data[u] <= 0.f)
+        const double vu = static_cast<double>(v.vesselness.data[u]);
+        if (!(vu >= params.min_vesselness) || vu <= 0)
             continue;
         const int i = static_cast<int>(u % static_cast<std::size_t>(nx));
         const int j = static_cast<int>((u / static_cast<std::size_t>(nx)) % static_cast<std::size_t>(ny));
         const int k = static_cast<int>(u / (static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny)));
         // The axis in voxel units per mm.
-        const double dx = v.axis.c[0].data[u] / image.spacing[0], dy = v.axis.c[1].data[u] / image.spacing[1],
-                     dz = v.axis.c[2].data[u] / image.spacing[2];
+        const double dx = static_cast<double>(v.axis.c[0].data[u]) / image.spacing[0],
+                     dy = static_cast<double>(v.axis.c[1].data[u]) / image.spacing[1],
+                     dz = static_cast<double>(v.axis.c[2].data[u]) / image.spacing[2];
         double si = 0, sv = 0;
         for (int t = -half; t <= half; ++t) {
             const double d = t * step;
-            si += detail::sample_trilinear(image, i + d * dx, j + d * dy, k + d * dz);
-            sv += detail::sample_trilinear(v.vesselness, i + d * dx, j + d * dy, k + d * dz);
+            si += static_cast<double>(detail::sample_trilinear(image, i + d * dx, j + d * dy, k + d * dz));
+            sv += static_cast<double>(detail::sample_trilinear(v.vesselness, i + d * dx, j + d * dy, k + d * dz));
         }
         r.intensity.data[u] = static_cast<float>(si / (2 * half + 1));
         r.vesselness.data[u] = static_cast<float>(sv / (2 * half + 1));

@@ -255,7 +255,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
     core::LabelImage3D inner(L.geometry(), 0);
     std::size_t n_inner = 0;
     for (std::size_t u = 0; u < L.data.size(); ++u)
-        if (L.data[u] && depth.data[u] > params.parenchyma_erosion_mm) {
+        if (L.data[u] && static_cast<double>(depth.data[u]) > params.parenchyma_erosion_mm) {
             inner.data[u] = 1;
             ++n_inner;
         }
@@ -269,7 +269,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
                 vals.push_back(S.data[u]);
         res.parenchyma = detail::quantile(vals, 0.5);
         for (float& v : vals)
-            v = static_cast<float>(std::abs(v - res.parenchyma));
+            v = static_cast<float>(std::abs(static_cast<double>(v) - res.parenchyma));
         res.parenchyma_sigma = std::max(1e-3, 1.4826 * detail::quantile(std::move(vals), 0.5));
     }
     sw.lap("smoothing");
@@ -300,7 +300,8 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
     const double seed_level = res.parenchyma + std::max(params.seed_sigmas * res.parenchyma_sigma, params.min_contrast);
     core::LabelImage3D seeds(L.geometry(), 0);
     for (std::size_t u = 0; u < L.data.size(); ++u)
-        if (inner.data[u] && F.data[u] >= seed_level && (!params.use_vesselness || Vs.data[u] >= params.seed_min_vesselness))
+        if (inner.data[u] && static_cast<double>(F.data[u]) >= seed_level &&
+            (!params.use_vesselness || static_cast<double>(Vs.data[u]) >= params.seed_min_vesselness))
             seeds.data[u] = 1;
     {
         const auto comps = detail::connected_components(seeds, 26);
@@ -346,7 +347,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
     core::ImageF G = F;
     if (params.use_vesselness && params.vesselness_boost > 0)
         for (std::size_t u = 0; u < G.data.size(); ++u)
-            G.data[u] += static_cast<float>(params.vesselness_boost * Vs.data[u] * res.contrast);
+            G.data[u] += static_cast<float>(params.vesselness_boost * static_cast<double>(Vs.data[u]) * res.contrast);
     const double object_value = res.parenchyma + params.object_level * res.contrast;
     if (params.keep_images) {
         res.feature = core::ImageF(image.geometry(), 0.f);
@@ -370,12 +371,15 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
             detail::paste(res.connectedness, K.connectedness, box);
         }
         for (std::size_t u = 0; u < object.data.size(); ++u)
-            object.data[u] = K.connectedness.data[u] >= params.link_threshold && G.data[u] >= object_value ? 1 : 0;
+            object.data[u] = static_cast<double>(K.connectedness.data[u]) >= params.link_threshold &&
+                                     static_cast<double>(G.data[u]) >= object_value
+                                 ? 1
+                                 : 0;
         sw.lap("fuzzy connectedness");
     } else {
         core::LabelImage3D above(L.geometry(), 0);
         for (std::size_t u = 0; u < above.data.size(); ++u)
-            above.data[u] = (L.data[u] && G.data[u] >= object_value) || seeds.data[u] ? 1 : 0;
+            above.data[u] = (L.data[u] && static_cast<double>(G.data[u]) >= object_value) || seeds.data[u] ? 1 : 0;
         const auto comps = detail::connected_components(above, params.connectivity == 26 ? 26 : 6);
         std::vector<std::uint8_t> seeded(comps.sizes.size(), 0);
         for (std::size_t u = 0; u < seeds.data.size(); ++u)
@@ -772,7 +776,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
                     const auto v = voxel_of(F, e.points[p]);
                     if (v[0] < 0)
                         continue;
-                    sum += F.at(v[0], v[1], v[2]);
+                    sum += static_cast<double>(F.at(v[0], v[1], v[2]));
                     ++cnt;
                 }
             }
