@@ -57,9 +57,9 @@ Input make_input(const std::string& name)
         in.params.spacing = {1.4, 1.4, 2.5};
         in.params.size = phantom::size_for_spacing(in.params.spacing);
         in.params.seed = 3;
-    } else if (name == "gap35" || name == "gap0") {
-        // a 5 mm stretch of a level-3 portal branch with 35 % (or no) contrast
-        in.gap_fraction = name == "gap35" ? 0.35 : 0.0;
+    } else if (name.rfind("gap", 0) == 0) {
+        // gapNN: a 5 mm stretch of a level-3 portal branch with NN % contrast
+        in.gap_fraction = std::stod(name.substr(3)) / 100.0;
     } else if (name == "invisible") {
         // no contrast: vessels at the liver's HU
         in.params.hu.portal_vein = in.params.hu.hepatic_vein = in.params.hu.liver;
@@ -69,6 +69,15 @@ Input make_input(const std::string& name)
         // a low-dose scan: twice the noise
         in.params.noise_sigma_hu = 25;
         in.params.seed = 11;
+    } else if (name.rfind("sp", 0) == 0) {
+        // sp<x>x<y>x<z>s<seed>, e.g. sp1.2x1.2x2s21: another grid and noise seed
+        double x = 0, y = 0, z = 0;
+        unsigned long long seed = 1;
+        if (std::sscanf(name.c_str(), "sp%lfx%lfx%lfs%llu", &x, &y, &z, &seed) != 4)
+            throw std::runtime_error("bad input " + name);
+        in.params.spacing = {x, y, z};
+        in.params.size = phantom::size_for_spacing(in.params.spacing);
+        in.params.seed = seed;
     } else {
         throw std::runtime_error("unknown input " + name);
     }
@@ -87,6 +96,9 @@ seg::VesselParams variant(const std::string& v)
         p.sharpening.sharpen_max = 0.75;
     } else if (v == "axial-3") {
         p.sharpening.half_length_mm = 3;
+    } else if (v == "no-fc-no-bridging") {
+        p.use_fuzzy_connectedness = false;
+        p.bridge_gaps = false;
     } else if (v == "no-fc") {
         p.use_fuzzy_connectedness = false;
     } else if (v == "no-lut") {
@@ -149,9 +161,11 @@ int main(int argc, char** argv)
                "recall,precision,label_accuracy,level_agreement,trees,edges,max_level\n";
     }
     for (const auto& name : inputs) {
-        const Input in = make_input(name);
+        Input in = make_input(name);
         const auto t0 = std::chrono::steady_clock::now();
         phantom::PhantomResult ph = phantom::generate_phantom(in.params);
+        if (std::getenv("VB_GAP"))
+            in.gap_fraction = std::atof(std::getenv("VB_GAP"));
         if (in.gap_fraction >= 0) {
             const auto& e = ph.truth.vessel_edges[6];
             phantom::add_vessel_gap(ph, in.params, 6, 0.5 * e.length_mm - 2.5, 5.0, in.gap_fraction);
