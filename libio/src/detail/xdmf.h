@@ -35,12 +35,19 @@ struct XdmfSimulation {
     std::vector<double> times; // one per frame
 };
 
+struct XdmfGraph {
+    std::string name;          // /graphs/<name>/{points,segments,point_radius,segment_level,segment_label}
+    std::size_t points = 0;
+    std::size_t segments = 0;
+};
+
 struct XdmfContents {
     std::vector<XdmfVolume> images;
     std::vector<XdmfVolume> labels;
     std::vector<XdmfSurface> surfaces;
     std::vector<XdmfTetMesh> meshes;
     std::vector<XdmfSimulation> simulations;
+    std::vector<XdmfGraph> graphs;
 };
 
 // The XDMF 3 document describing `contents`, whose heavy data lives in `h5_file_name`
