@@ -17,5 +17,6 @@ Command add_eval(CLI::App& lseg); //!< lseg eval SEG REF: Dice, the SLIVER07 mea
 Command add_snake(CLI::App& lseg); //!< lseg snake IMAGE: CDSG / GGVF / GAC active contours
 Command add_train(CLI::App& lseg); //!< lseg train --image --labels ... -o: the shape memory
 Command add_liver(CLI::App& lseg); //!< lseg liver IMAGE -o OUT.h5: automatic liver segmentation
+Command add_vessels(CLI::App& lseg); //!< lseg vessels IMAGE -o OUT.h5: hepatic vessel trees
 
 } // namespace lobe::lseg
