@@ -238,7 +238,7 @@ int main(int argc, char** argv)
                           rec[4], ev.overall.recall(), ev.precision, label_acc, ev.level_agreement, res.trees.size(),
                           res.graph.edges.size(), max_level, distal_text.c_str(), res.found ? 1 : 0);
             std::cout << line << std::endl;
-            if (out)
+            if (out.is_open())
                 out << line << "\n" << std::flush;
             std::cerr << "  " << v << ": " << res.message << "\n   ";
             for (const auto& [k, s] : res.timings)
@@ -246,7 +246,7 @@ int main(int argc, char** argv)
             std::cerr << "\n";
         }
 
-        if (lut_out) {
+        if (lut_out.is_open()) {
             // The fuzzy-connectedness propagation over the whole liver (no minimum strength, so
             // every liver voxel is expanded), exact affinity against the lookup table, from the
             // pipeline's seeds and affinity.
