@@ -16,7 +16,7 @@ int main(int argc, char** argv)
     app.require_subcommand(1);
     app.fallthrough(); // --quiet may follow the subcommand (subcommands inherit this)
     const std::vector<lseg::Command> commands = {lseg::add_snake(app), lseg::add_eval(app), lseg::add_train(app), lseg::add_liver(app),
-                                                lseg::add_vessels(app)};
+                                                lseg::add_vessels(app), lseg::add_tumours(app), lseg::add_all(app)};
 
     tools::RunRecord record(app, argc, argv);
     return tools::run_tool(app, argc, argv, [&] {

@@ -65,6 +65,32 @@ bool has_item(const io::Hdf5Reader& h5, const std::string& name)
 
 } // namespace
 
+bool has_labels(const fs::path& path, const std::string& name)
+{
+    return io::image_format(path) == io::ImageFormat::Hdf5 && has_item(io::Hdf5Reader(path), name);
+}
+
+core::LabelImage3D read_mask(const fs::path& path, const std::string& h5_name, const core::ImageGeometry& image,
+                             const std::string& what)
+{
+    const std::string item = io::image_format(path) == io::ImageFormat::Hdf5 ? "labels/" + h5_name : "";
+    core::LabelImage3D m = mask_of(read_any(path, item), {});
+    if (!core::same_grid(m, image))
+        throw core::InvalidInputError(path.string() + ": the " + what + " mask is not on the image's grid");
+    return m;
+}
+
+core::Vec3 parse_point(const std::string& text)
+{
+    core::Vec3 p;
+    char c1 = 0, c2 = 0;
+    std::istringstream s(text);
+    if (!(s >> p.x >> c1 >> p.y >> c2 >> p.z) || c1 != ',' || c2 != ',' || !s.eof() || !std::isfinite(p.x) ||
+        !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw CLI::ValidationError("--seed", "'" + text + "' is not a point x,y,z in mm");
+    return p;
+}
+
 core::LabelImage3D obtain_liver(const fs::path& image_path, const core::ImageF& image, const LiverSource& source,
                                 const tools::Progress& progress, tools::Timings& timings, std::string& how)
 {
@@ -137,6 +163,56 @@ void add_vessel_provenance(io::Provenance& prov, const seg::VesselResult& r)
     }
     for (const auto& [name, seconds] : r.timings)
         prov.timings.emplace_back("vessels." + name, seconds);
+}
+
+void add_tumour_provenance(io::Provenance& prov, const seg::TumourResult& r)
+{
+    auto param = [&](const std::string& k, const std::string& v) { prov.parameters.emplace_back("tumours." + k, v); };
+    param("found", r.found ? "true" : "false");
+    param("message", r.message);
+    param("parenchyma", fixed(r.parenchyma, 2));
+    param("parenchyma_sigma", fixed(r.parenchyma_sigma, 2));
+    param("threshold", fixed(r.threshold, 2));
+    std::string centres;
+    for (double c : r.layer_centres)
+        centres += (centres.empty() ? "" : ",") + fixed(c, 1);
+    param("layer_centres", centres);
+    param("count", std::to_string(r.tumours.size()));
+    double total = 0;
+    for (std::size_t t = 0; t < r.tumours.size(); ++t) {
+        const auto& tr = r.tumours[t];
+        total += tr.volume_ml;
+        param("tumour" + std::to_string(t), fixed(tr.volume_ml, 3) + " mL at (" + fixed(tr.centroid.x, 1) + ", " +
+                                                fixed(tr.centroid.y, 1) + ", " + fixed(tr.centroid.z, 1) + ") mm, contrast " +
+                                                fixed(tr.contrast, 1) + (tr.touches_surface ? ", at the surface" : "") +
+                                                (tr.from_seed ? ", from a seed" : ""));
+    }
+    param("volume_ml", fixed(total, 3));
+    for (const auto& [name, seconds] : r.timings)
+        prov.timings.emplace_back("tumours." + name, seconds);
+}
+
+void write_tumour_pictures(const fs::path& dir, const std::string& prefix, const core::ImageF& image,
+                           const core::LabelImage3D& liver, const seg::TumourResult& r)
+{
+    fs::create_directories(dir);
+    tools::Overlay ov;
+    ov.labels = &r.mask;
+    ov.fill_opacity = 0.25;
+    ov.contour_px = 2;
+    ov.colours = {{seg::kTumourLabel, {255, 235, 0}, "tumour"}};
+    tools::Overlay lov;
+    lov.labels = &liver;
+    lov.fill_opacity = 0.0;
+    lov.colours = {{1, {214, 128, 52}, "liver"}};
+    for (std::size_t t = 0; t < r.tumours.size() && t < 3; ++t) {
+        const core::Vec3 c = image.physical_to_index(r.tumours[t].centroid);
+        tools::PictureParams pp;
+        pp.index = std::clamp(static_cast<int>(std::lround(c.z)), 0, image.size[2] - 1);
+        pp.caption = "lseg tumours: " + fixed(r.tumours[t].volume_ml, 2) + " mL, " + fixed(r.tumours[t].contrast, 0) +
+                     " HU against the parenchyma" + (r.tumours[t].touches_surface ? ", at the surface" : "");
+        tools::write_slice_png(dir / (prefix + "-" + std::to_string(t + 1) + ".png"), image, pp, {lov, ov});
+    }
 }
 
 void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const core::ImageF& image,

@@ -7,6 +7,7 @@
 #include "lobe/core/centreline_graph.h"
 #include "lobe/core/image3d.h"
 #include "lobe/io/hdf5.h"
+#include "lobe/seg/tumours.h"
 #include "lobe/seg/vessels.h"
 
 #include <filesystem>
@@ -45,6 +46,25 @@ void add_vessel_provenance(io::Provenance& prov, const seg::VesselResult& r);
 //! over a coronal maximum-intensity projection of the liver ("<prefix>-tree.png").
 void write_vessel_pictures(const std::filesystem::path& dir, const std::string& prefix, const core::ImageF& image,
                            const core::LabelImage3D& liver, const seg::VesselResult& r);
+
+//! Adds the tumour results (prefix "tumours.") to a provenance record.
+void add_tumour_provenance(io::Provenance& prov, const seg::TumourResult& r);
+
+//! An optional mask read from `path` (any image format; a .h5's label volume `h5_name`), non-zero
+//! = object, on the grid of `image`. \throw core::InvalidInputError naming the file otherwise.
+core::LabelImage3D read_mask(const std::filesystem::path& path, const std::string& h5_name, const core::ImageGeometry& image,
+                             const std::string& what);
+
+//! True if the container at `path` (a .h5) has the label volume `name`.
+bool has_labels(const std::filesystem::path& path, const std::string& name);
+
+//! Parses "x,y,z" [mm]. \throw CLI::ValidationError (bad command line) otherwise.
+core::Vec3 parse_point(const std::string& text);
+
+//! Axial pictures through each tumour's centre (at most three, largest first) with the tumour and
+//! liver contours: "<prefix>-1.png", ...
+void write_tumour_pictures(const std::filesystem::path& dir, const std::string& prefix, const core::ImageF& image,
+                           const core::LabelImage3D& liver, const seg::TumourResult& r);
 
 //! "12.3" style formatting.
 std::string fixed(double v, int digits);
