@@ -1,7 +1,7 @@
 // Tumour segmentation (issue 5): Dice, detection of each tumour and time, automatic (K-means
-// layers + CDSG, and without CDSG) and semi-automatic (one seed per tumour), on lphantom volumes
+// layers, and with the CDSG refinement) and semi-automatic (one seed per tumour), on lphantom volumes
 // with the truth liver and vessels given.
-//   tumour_bench [--inputs default,fine,coarse,spXxYxZsN] [--variants full,no-cdsg,seeds,no-vessels]
+//   tumour_bench [--inputs default,fine,coarse,spXxYxZsN] [--variants full,cdsg,cdsg-unshrunk,seeds,no-vessels]
 //                [--csv FILE]
 #include "lphantom/phantom.h"
 
@@ -76,7 +76,7 @@ int main(int argc, char** argv)
         else if (s == "--csv")
             csv = argv[a + 1];
         else {
-            std::cerr << "usage: tumour_bench [--inputs ...] [--variants full,no-cdsg,seeds,no-vessels] [--csv FILE]\n";
+            std::cerr << "usage: tumour_bench [--inputs ...] [--variants full,cdsg,cdsg-unshrunk,seeds,no-vessels] [--csv FILE]\n";
             return 1;
         }
     }
@@ -118,15 +118,15 @@ int main(int argc, char** argv)
             seg::TumourParams tp;
             std::vector<core::Vec3> seeds;
             const core::LabelImage3D* vp = &vessels;
-            if (v == "no-cdsg")
-                tp.use_cdsg = false;
+            if (v == "cdsg")
+                tp.use_cdsg = true;
             else if (v == "seeds")
                 for (const auto& t : ph.truth.tumours)
                     seeds.push_back(t.centroid);
-            else if (v == "cdsg-noerode")
+            else if (v == "cdsg-unshrunk") {
+                tp.use_cdsg = true;
                 tp.init_erosion_mm = 0;
-            else if (v == "cdsg-erode2")
-                tp.init_erosion_mm = 2;
+            }
             else if (v == "no-vessels")
                 vp = nullptr;
             else if (v != "full")

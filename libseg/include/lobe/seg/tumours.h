@@ -43,9 +43,9 @@ struct TumourParams {
                                       //!< from inside to their border) are partial-volume sheets
                                       //!< along the liver surface or a fissure [mm]
     //! Refine each component with the CDSG snake started from it (shrunk by init_erosion_mm).
-    //! Off by default: on the phantom the K-means component already lies on the half-contrast edge
-    //! and the snake, which stops on the inner side of a blurred edge band, only shrinks small
-    //! tumours (satellite Dice 0.94 -> 0.77; docs/algorithms/tumours.md has the measurements).
+    //! Off by default: on the phantom the K-means component already lies on the half-contrast edge;
+    //! the snake shrinks small tumours (satellite Dice 0.92 -> 0.76) and leaks out of the lobular
+    //! one on coarse or noisy grids (0.96 -> 0.72); docs/algorithms/tumours.md has the table.
     bool use_cdsg = false;
     SnakeParams snake;                //!< the snake; its window is set from the layers (see .md)
     double box_margin_mm = 8.0;       //!< the snake runs in the component's box grown by this [mm]
