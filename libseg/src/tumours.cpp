@@ -36,6 +36,7 @@ void check_params(const TumourParams& p)
     nonneg(p.min_contrast, "min_contrast");
     nonneg(p.contrast_sigmas, "contrast_sigmas");
     nonneg(p.min_volume_ml, "min_volume_ml");
+    nonneg(p.max_contrast, "max_contrast");
     nonneg(p.min_thickness_mm, "min_thickness_mm");
     nonneg(p.surface_rim_mm, "surface_rim_mm");
     nonneg(p.box_margin_mm, "box_margin_mm");
@@ -212,15 +213,27 @@ TumourResult segment_tumours(const core::ImageF& image, const core::LabelImage3D
         for (std::size_t u = 0; u < cand.data.size(); ++u)
             if (comps.id[u] >= 0)
                 max_depth[std::size_t(comps.id[u])] = std::max(max_depth[std::size_t(comps.id[u])], static_cast<double>(thick.data[u]));
+        std::vector<std::vector<float>> values(comps.sizes.size());
+        for (std::size_t u = 0; u < cand.data.size(); ++u)
+            if (comps.id[u] >= 0)
+                values[std::size_t(comps.id[u])].push_back(S.data[u]);
+        std::size_t too_dark = 0;
         for (std::size_t c = 0; c < comps.sizes.size(); ++c) {
             if (static_cast<double>(comps.sizes[c]) * voxel_ml < params.min_volume_ml || max_depth[c] < params.min_thickness_mm)
                 continue;
+            if (detail::quantile(values[c], 0.5) < res.parenchyma - params.max_contrast) {
+                ++too_dark;
+                continue;
+            }
             core::LabelImage3D m(R.geometry(), 0);
             for (std::size_t u = 0; u < m.data.size(); ++u)
                 m.data[u] = comps.id[u] == static_cast<std::int32_t>(c) ? 1 : 0;
             components.push_back(std::move(m));
             from_seed.push_back(false);
         }
+        if (too_dark)
+            res.message = std::to_string(too_dark) + " region" + (too_dark > 1 ? "s" : "") + " darker than parenchyma - " +
+                          fmt(params.max_contrast, 0) + " left out as fluid, bile or fat";
     } else {
         // Semi-automatic: each seed's tumour is the region darker than half way between the
         // seed's surroundings and the parenchyma, grown from the seed.

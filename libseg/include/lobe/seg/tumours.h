@@ -38,6 +38,10 @@ struct TumourParams {
     //! populous layer) by at least max(min_contrast, contrast_sigmas × the parenchyma's σ).
     double min_contrast = 8.0;        //!< [image units, HU]
     double contrast_sigmas = 4.0;
+    //! ... and a component whose median lies more than this below the parenchyma is not tumour
+    //! but fluid, bile or fat: a simple cyst (0-20 HU), or a neighbour a leaky liver mask took in
+    //! (the gallbladder) [image units, HU]
+    double max_contrast = 70.0;
     double min_volume_ml = 0.1;       //!< smaller components are noise [mL]
     double min_thickness_mm = 2.0;    //!< components thinner than twice this (the largest distance
                                       //!< from inside to their border) are partial-volume sheets
