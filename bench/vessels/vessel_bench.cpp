@@ -102,6 +102,8 @@ seg::VesselParams variant(const std::string& v)
         p.use_directional_sharpening = false;
     } else if (v == "tan-kernel") {
         p.sharpening.sharpen_max = 0.75; // the thesis's DSG sharpening kernel on the vesselness
+    } else if (v == "seed3") {
+        p.seed_sigmas = 3;
     } else if (v == "no-fc") {
         p.use_fuzzy_connectedness = false;
     } else if (v == "no-lut") {

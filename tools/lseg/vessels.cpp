@@ -93,6 +93,10 @@ Command add_vessels(CLI::App& lseg)
                     "Vessels must be at least this much brighter than the parenchyma [HU]; below it none are reported")
         ->capture_default_str()
         ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--seed-sigmas", o->params.seed_sigmas,
+                    "Seeds are brighter than the parenchyma by this many of its (smoothed) standard deviations")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
     cmd->add_option("--link-threshold", o->params.link_threshold,
                     "Fuzzy-connectedness threshold θ: the weakest link a vessel path may have (0-1)")
         ->capture_default_str()
