@@ -8,8 +8,8 @@ using namespace lobe;
 
 int main(int argc, char** argv)
 {
-    CLI::App app{"lseg: segment CT/MRI volumes (active contours: CDSG, GGVF, GAC) and evaluate "
-                 "segmentations (Dice, SLIVER07 measures and score)",
+    CLI::App app{"lseg: segment CT/MRI volumes (active contours: CDSG, GGVF, GAC; the liver, its vessels and "
+                 "tumours) and evaluate segmentations (Dice, SLIVER07 measures and score)",
                  "lseg"};
     bool quiet = false;
     tools::add_common_options(app, quiet);
