@@ -137,28 +137,6 @@ public:
         line(indent, "</Grid>");
     }
 
-    // A centre-line graph as line segments between consecutive polyline points, coloured by
-    // radius (per point), branch level and tissue label (per segment).
-    void graph(int indent, const XdmfGraph& g)
-    {
-        const std::string base = "/graphs/" + g.name;
-        const std::string cells = std::to_string(g.segments), n = std::to_string(g.points);
-        line(indent, "<Grid Name=\"" + xml_escape(g.name) + "\" GridType=\"Uniform\">");
-        line(indent + 1, "<Topology TopologyType=\"Polyline\" NodesPerElement=\"2\" NumberOfElements=\"" + cells + "\">");
-        hdf_item(indent + 2, cells + " 2", {"Int", 4}, base + "/segments");
-        line(indent + 1, "</Topology>");
-        vertices(indent + 1, base + "/points", g.points);
-        line(indent + 1, "<Attribute Name=\"radius\" AttributeType=\"Scalar\" Center=\"Node\">");
-        hdf_item(indent + 2, n, {"Float", 8}, base + "/point_radius");
-        line(indent + 1, "</Attribute>");
-        for (const char* a : {"level", "label"}) {
-            line(indent + 1, std::string("<Attribute Name=\"") + a + "\" AttributeType=\"Scalar\" Center=\"Cell\">");
-            hdf_item(indent + 2, cells, {"Int", 4}, base + "/segment_" + a);
-            line(indent + 1, "</Attribute>");
-        }
-        line(indent, "</Grid>");
-    }
-
     // A temporal collection: one grid per frame, the mesh's topology with the frame's hyperslab
     // of the positions as geometry, so ParaView plays the run.
     void simulation(int indent, const XdmfSimulation& sim)
@@ -199,6 +177,28 @@ public:
         for (const auto& item : items)
             emit(item);
         line(2, "</Grid>");
+    }
+
+    // A centre-line graph as line segments between consecutive polyline points, coloured by
+    // radius (per point), branch level and tissue label (per segment).
+    void graph(int indent, const XdmfGraph& g)
+    {
+        const std::string base = "/graphs/" + g.name;
+        const std::string cells = std::to_string(g.segments), n = std::to_string(g.points);
+        line(indent, "<Grid Name=\"" + xml_escape(g.name) + "\" GridType=\"Uniform\">");
+        line(indent + 1, "<Topology TopologyType=\"Polyline\" NodesPerElement=\"2\" NumberOfElements=\"" + cells + "\">");
+        hdf_item(indent + 2, cells + " 2", {"Int", 4}, base + "/segments");
+        line(indent + 1, "</Topology>");
+        vertices(indent + 1, base + "/points", g.points);
+        line(indent + 1, "<Attribute Name=\"radius\" AttributeType=\"Scalar\" Center=\"Node\">");
+        hdf_item(indent + 2, n, {"Float", 8}, base + "/point_radius");
+        line(indent + 1, "</Attribute>");
+        for (const char* a : {"level", "label"}) {
+            line(indent + 1, std::string("<Attribute Name=\"") + a + "\" AttributeType=\"Scalar\" Center=\"Cell\">");
+            hdf_item(indent + 2, cells, {"Int", 4}, base + "/segment_" + a);
+            line(indent + 1, "</Attribute>");
+        }
+        line(indent, "</Grid>");
     }
 
     std::string str() const { return out_.str(); }

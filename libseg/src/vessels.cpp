@@ -515,7 +515,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
     if (params.bridge_gaps) {
         // A fragment's thick end faces the gap that cut it off: join it to the nearest point of
         // another part ahead of it (snapped to that part's end point when one is near: a gap
-        // interrupts a vessel, it does not branch it). Biggest parts first.
+        // interrupts a vessel, it does not branch it). One join per pass, until none is left.
         for (int pass = 0; pass < 32; ++pass) {
             const auto comps = graph_components(graph);
             const auto inc = incidence(graph);
