@@ -140,6 +140,7 @@ template <> hid_t native_type<std::int16_t>() { return H5T_NATIVE_INT16; }
 template <> hid_t native_type<std::uint16_t>() { return H5T_NATIVE_UINT16; }
 template <> hid_t native_type<std::int32_t>() { return H5T_NATIVE_INT32; }
 template <> hid_t native_type<std::uint32_t>() { return H5T_NATIVE_UINT32; }
+template <> hid_t native_type<std::int64_t>() { return H5T_NATIVE_INT64; }
 template <> hid_t native_type<float>() { return H5T_NATIVE_FLOAT; }
 template <> hid_t native_type<double>() { return H5T_NATIVE_DOUBLE; }
 
@@ -151,6 +152,7 @@ template <> hid_t file_type<std::int16_t>() { return H5T_STD_I16LE; }
 template <> hid_t file_type<std::uint16_t>() { return H5T_STD_U16LE; }
 template <> hid_t file_type<std::int32_t>() { return H5T_STD_I32LE; }
 template <> hid_t file_type<std::uint32_t>() { return H5T_STD_U32LE; }
+template <> hid_t file_type<std::int64_t>() { return H5T_STD_I64LE; }
 template <> hid_t file_type<float>() { return H5T_IEEE_F32LE; }
 template <> hid_t file_type<double>() { return H5T_IEEE_F64LE; }
 
@@ -856,7 +858,7 @@ struct Hdf5Writer::Impl {
     detail::AtomicOutput out;
     File h; // declared after `out`: the file is closed before its temporary is removed
     detail::XdmfContents xdmf;
-    std::set<std::string> names[4]; // images, labels, surfaces, meshes
+    std::set<std::string> names[5]; // images, labels, surfaces, meshes, graphs
     int next_record = 0;
     struct Simulation {
         std::size_t nodes = 0;  // vertices per frame in the current epoch
@@ -1074,6 +1076,96 @@ void Hdf5Writer::write_tet_mesh(const std::string& name, const core::TetMesh& me
     for (const auto& q : quality)
         x.quality.push_back(q.name);
     m.xdmf.meshes.push_back(std::move(x));
+}
+
+void Hdf5Writer::write_graph(const std::string& name, const core::CentrelineGraph& graph)
+{
+    Impl& m = impl();
+    m.require_open();
+    m.check_new_name(4, "graph", name);
+    const std::string where = m.what("/graphs/" + name);
+    if (const std::string problem = core::graph_problem(graph); !problem.empty())
+        throw InvalidInputError(where + ": " + problem);
+    std::size_t points = 0;
+    for (const auto& e : graph.edges)
+        points += e.points.size();
+    if (graph.nodes.size() > kMaxMeshElements || graph.edges.size() > kMaxMeshElements || points > kMaxMeshElements)
+        throw InvalidInputError(where + ": graph exceeds the limit of " + std::to_string(kMaxMeshElements) + " elements");
+    for (const auto& e : graph.edges)
+        if (e.name.find('\0') != std::string::npos)
+            throw InvalidInputError(where + ": an edge name contains a NUL character");
+
+    const std::size_t n = graph.nodes.size(), ne = graph.edges.size();
+    std::vector<core::Vec3> nodes(n), pts;
+    std::vector<double> node_radius(n), edge_radius(ne), edge_length(ne), point_radius;
+    std::vector<std::int32_t> edges(2 * ne), level(ne), label(ne), segments, seg_level, seg_label, named;
+    std::vector<std::int64_t> offsets{0};
+    std::vector<std::string> names;
+    for (std::size_t i = 0; i < n; ++i) {
+        nodes[i] = graph.nodes[i].position;
+        node_radius[i] = graph.nodes[i].radius_mm;
+    }
+    pts.reserve(points);
+    for (std::size_t e = 0; e < ne; ++e) {
+        const auto& ed = graph.edges[e];
+        edges[2 * e] = ed.from;
+        edges[2 * e + 1] = ed.to;
+        level[e] = ed.level;
+        label[e] = ed.label;
+        edge_radius[e] = ed.radius_mm;
+        edge_length[e] = ed.length_mm;
+        for (std::size_t p = 0; p < ed.points.size(); ++p) {
+            if (p > 0) {
+                segments.push_back(static_cast<std::int32_t>(pts.size() - 1));
+                segments.push_back(static_cast<std::int32_t>(pts.size()));
+                seg_level.push_back(ed.level);
+                seg_label.push_back(ed.label);
+            }
+            pts.push_back(ed.points[p]);
+            point_radius.push_back(ed.point_radius[p]);
+        }
+        offsets.push_back(static_cast<std::int64_t>(pts.size()));
+        if (!ed.name.empty()) {
+            named.push_back(static_cast<std::int32_t>(e));
+            names.push_back(ed.name);
+        }
+    }
+    const std::size_t np = pts.size(), ns = seg_level.size();
+    m.guarded([&] {
+        Group graphs = m.group("graphs");
+        Group grp = create_group(graphs.get(), name, where);
+        auto mm = [&](Dataset d, const std::string& w) { write_string_attr(d.get(), "units", "mm", w); };
+        mm(write_dataset(grp.get(), "nodes", {n, 3}, {row_chunk(n, 24), 3}, reinterpret_cast<const double*>(nodes.data()),
+                         m.params, where + "/nodes"),
+           where + "/nodes");
+        mm(write_dataset(grp.get(), "node_radius", {n}, {row_chunk(n, 8)}, node_radius.data(), m.params, where + "/node_radius"),
+           where + "/node_radius");
+        write_dataset(grp.get(), "edges", {ne, 2}, {row_chunk(ne, 8), 2}, edges.data(), m.params, where + "/edges");
+        write_dataset(grp.get(), "edge_level", {ne}, {row_chunk(ne, 4)}, level.data(), m.params, where + "/edge_level");
+        write_dataset(grp.get(), "edge_label", {ne}, {row_chunk(ne, 4)}, label.data(), m.params, where + "/edge_label");
+        mm(write_dataset(grp.get(), "edge_radius", {ne}, {row_chunk(ne, 8)}, edge_radius.data(), m.params, where + "/edge_radius"),
+           where + "/edge_radius");
+        mm(write_dataset(grp.get(), "edge_length", {ne}, {row_chunk(ne, 8)}, edge_length.data(), m.params, where + "/edge_length"),
+           where + "/edge_length");
+        write_dataset(grp.get(), "edge_offsets", {ne + 1}, {row_chunk(ne + 1, 8)}, offsets.data(), m.params,
+                      where + "/edge_offsets");
+        mm(write_dataset(grp.get(), "points", {np, 3}, {row_chunk(np, 24), 3}, reinterpret_cast<const double*>(pts.data()),
+                         m.params, where + "/points"),
+           where + "/points");
+        mm(write_dataset(grp.get(), "point_radius", {np}, {row_chunk(np, 8)}, point_radius.data(), m.params,
+                         where + "/point_radius"),
+           where + "/point_radius");
+        // Derived, for the XDMF sidecar: consecutive polyline points as line segments.
+        write_dataset(grp.get(), "segments", {ns, 2}, {row_chunk(ns, 8), 2}, segments.data(), m.params, where + "/segments");
+        write_dataset(grp.get(), "segment_level", {ns}, {row_chunk(ns, 4)}, seg_level.data(), m.params, where + "/segment_level");
+        write_dataset(grp.get(), "segment_label", {ns}, {row_chunk(ns, 4)}, seg_label.data(), m.params, where + "/segment_label");
+        if (!named.empty()) {
+            write_array_attr(grp.get(), "named_edges", named.data(), named.size(), where);
+            write_strings_attr(grp.get(), "edge_names", names, where);
+        }
+    });
+    m.names[4].insert(name);
+    m.xdmf.graphs.push_back({name, np, ns});
 }
 
 void Hdf5Writer::write_provenance(const Provenance& record)
@@ -1400,6 +1492,7 @@ std::vector<std::string> Hdf5Reader::labels() const { return impl().list("labels
 std::vector<std::string> Hdf5Reader::surfaces() const { return impl().list("surfaces"); }
 std::vector<std::string> Hdf5Reader::tet_meshes() const { return impl().list("meshes"); }
 std::vector<std::string> Hdf5Reader::simulations() const { return impl().list("simulation"); }
+std::vector<std::string> Hdf5Reader::graphs() const { return impl().list("graphs"); }
 
 ImageInfo Hdf5Reader::image_info(const std::string& name) const
 {
@@ -1456,6 +1549,95 @@ LabelVolume Hdf5Reader::read_labels(const std::string& name) const
     check_stored(v, geom.voxel_count()); // before allocating
     out.image = core::LabelImage3D(geom);
     read_all(v, out.image.data.data(), out.image.data.size());
+    return out;
+}
+
+core::CentrelineGraph Hdf5Reader::read_graph(const std::string& name) const
+{
+    Group parent = impl().item_group("graphs", name, "graph");
+    const std::string where = impl().at("/graphs/" + name);
+    Group g = open_group(parent.get(), name, where);
+    // A one-column dataset of `rows` values (rows == npos: any number up to the limit).
+    auto column = [&](const char* ds, H5T_class_t cls, const char* type_name, std::size_t rows, auto tag) {
+        using T = decltype(tag);
+        DatasetView v = open_dataset(g.get(), ds, where + "/" + ds);
+        const std::size_t n = check_shape(v, 1, 0, kMaxMeshElements + 1);
+        check_class(v, cls, type_name);
+        if (rows != std::size_t(-1) && n != rows)
+            throw InvalidInputError(v.where + " has " + std::to_string(n) + " values, expected " + std::to_string(rows));
+        check_stored(v, n * sizeof(T));
+        std::vector<T> out(n);
+        read_all(v, out.data(), n);
+        return out;
+    };
+    auto xyz = [&](const char* ds) {
+        DatasetView v = open_dataset(g.get(), ds, where + "/" + ds);
+        const std::size_t n = check_shape(v, 2, 3, kMaxMeshElements);
+        check_class(v, H5T_FLOAT, "float64");
+        check_stored(v, n * sizeof(core::Vec3));
+        std::vector<core::Vec3> out(n);
+        read_all(v, reinterpret_cast<double*>(out.data()), 3 * n);
+        check_finite(out, v.where);
+        return out;
+    };
+    const auto nodes = xyz("nodes");
+    const auto node_radius = column("node_radius", H5T_FLOAT, "float64", nodes.size(), double{});
+    const auto edges = read_cells<2>(g.get(), "edges", where);
+    const std::size_t ne = edges.size();
+    const auto level = column("edge_level", H5T_INTEGER, "int32", ne, std::int32_t{});
+    const auto label = column("edge_label", H5T_INTEGER, "int32", ne, std::int32_t{});
+    const auto radius = column("edge_radius", H5T_FLOAT, "float64", ne, double{});
+    const auto length = column("edge_length", H5T_FLOAT, "float64", ne, double{});
+    const auto offsets = column("edge_offsets", H5T_INTEGER, "int64", ne + 1, std::int64_t{});
+    const auto points = xyz("points");
+    const auto point_radius = column("point_radius", H5T_FLOAT, "float64", points.size(), double{});
+    if (offsets.front() != 0 || offsets.back() != static_cast<std::int64_t>(points.size()))
+        throw InvalidInputError(where + "/edge_offsets must run from 0 to the number of points (" +
+                                std::to_string(points.size()) + ")");
+    core::CentrelineGraph out;
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+        out.nodes.push_back({nodes[i], node_radius[i]});
+    for (std::size_t e = 0; e < ne; ++e) {
+        if (offsets[e + 1] < offsets[e] + 2)
+            throw InvalidInputError(where + "/edge_offsets: edge " + std::to_string(e) + " has fewer than two points");
+        core::CentrelineEdge ed;
+        ed.from = edges[e][0];
+        ed.to = edges[e][1];
+        ed.level = level[e];
+        ed.label = label[e];
+        ed.radius_mm = radius[e];
+        ed.length_mm = length[e];
+        ed.points.assign(points.begin() + offsets[e], points.begin() + offsets[e + 1]);
+        ed.point_radius.assign(point_radius.begin() + offsets[e], point_radius.begin() + offsets[e + 1]);
+        out.edges.push_back(std::move(ed));
+    }
+    const bool has_index = has_attr(g.get(), "named_edges"), has_names = has_attr(g.get(), "edge_names");
+    if (has_index != has_names)
+        throw InvalidInputError(where + " has one of the attributes named_edges and edge_names but not the other");
+    if (has_index) {
+        Attr ia = open_attr(g.get(), "named_edges", where);
+        const hssize_t k = attr_points(ia.get(), where, "named_edges");
+        if (k < 0 || static_cast<std::size_t>(k) > ne)
+            throw InvalidInputError(where + ": attribute named_edges has " + std::to_string(k) + " entries for " +
+                                    std::to_string(ne) + " edges");
+        std::vector<long long> idx(static_cast<std::size_t>(k));
+        if (k > 0)
+            ok(H5Aread(ia.get(), H5T_NATIVE_LLONG, idx.data()), where + ": cannot read attribute named_edges");
+        Attr na = open_attr(g.get(), "edge_names", where);
+        Type nt(ok_id(H5Aget_type(na.get()), where));
+        if (H5Tget_class(nt.get()) != H5T_STRING || attr_points(na.get(), where, "edge_names") != k)
+            throw InvalidInputError(where + ": attribute edge_names must hold one string per entry of named_edges");
+        const auto names = k > 0 ? read_strings(na.get(), nt.get(), static_cast<std::size_t>(k), where + ": attribute edge_names")
+                                 : std::vector<std::string>{};
+        for (std::size_t i = 0; i < idx.size(); ++i) {
+            if (idx[i] < 0 || idx[i] >= static_cast<long long>(ne))
+                throw InvalidInputError(where + ": named_edges holds edge " + std::to_string(idx[i]) + " outside [0, " +
+                                        std::to_string(ne) + ")");
+            out.edges[static_cast<std::size_t>(idx[i])].name = names[i];
+        }
+    }
+    if (const std::string problem = core::graph_problem(out); !problem.empty())
+        throw InvalidInputError(where + ": " + problem);
     return out;
 }
 

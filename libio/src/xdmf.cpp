@@ -180,6 +180,28 @@ public:
         line(2, "</Grid>");
     }
 
+    // A centre-line graph as line segments between consecutive polyline points, coloured by
+    // radius (per point), branch level and tissue label (per segment).
+    void graph(int indent, const XdmfGraph& g)
+    {
+        const std::string base = "/graphs/" + g.name;
+        const std::string cells = std::to_string(g.segments), n = std::to_string(g.points);
+        line(indent, "<Grid Name=\"" + xml_escape(g.name) + "\" GridType=\"Uniform\">");
+        line(indent + 1, "<Topology TopologyType=\"Polyline\" NodesPerElement=\"2\" NumberOfElements=\"" + cells + "\">");
+        hdf_item(indent + 2, cells + " 2", {"Int", 4}, base + "/segments");
+        line(indent + 1, "</Topology>");
+        vertices(indent + 1, base + "/points", g.points);
+        line(indent + 1, "<Attribute Name=\"radius\" AttributeType=\"Scalar\" Center=\"Node\">");
+        hdf_item(indent + 2, n, {"Float", 8}, base + "/point_radius");
+        line(indent + 1, "</Attribute>");
+        for (const char* a : {"level", "label"}) {
+            line(indent + 1, std::string("<Attribute Name=\"") + a + "\" AttributeType=\"Scalar\" Center=\"Cell\">");
+            hdf_item(indent + 2, cells, {"Int", 4}, base + "/segment_" + a);
+            line(indent + 1, "</Attribute>");
+        }
+        line(indent, "</Grid>");
+    }
+
     std::string str() const { return out_.str(); }
 
 private:
@@ -208,6 +230,11 @@ std::string xdmf_document(const XdmfContents& contents, const std::string& h5_fi
             meshes.push_back(m);
     doc.collection("surfaces", surfaces, [&](const XdmfSurface& s) { doc.surface(3, s); });
     doc.collection("meshes", meshes, [&](const XdmfTetMesh& m) { doc.tet_mesh(3, m); });
+    std::vector<XdmfGraph> graphs;
+    for (const auto& g : contents.graphs)
+        if (g.points > 0 && g.segments > 0)
+            graphs.push_back(g);
+    doc.collection("graphs", graphs, [&](const XdmfGraph& g) { doc.graph(3, g); });
     std::vector<XdmfSimulation> simulations;
     for (const auto& s : contents.simulations)
         if (!s.times.empty() && s.mesh.vertices > 0 && s.mesh.tets > 0)

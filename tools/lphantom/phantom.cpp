@@ -1521,4 +1521,68 @@ PhantomResult generate_phantom(const PhantomParams& params)
     return res;
 }
 
+core::CentrelineGraph truth_graph(const PhantomTruth& truth)
+{
+    core::CentrelineGraph g;
+    for (const auto& n : truth.vessel_nodes)
+        g.nodes.push_back({n.position, n.radius_mm});
+    for (const auto& e : truth.vessel_edges) {
+        core::CentrelineEdge ce;
+        ce.from = e.from;
+        ce.to = e.to;
+        ce.level = e.level;
+        ce.label = e.tree == VesselTree::Portal ? kPortalVein : kHepaticVein;
+        ce.radius_mm = e.radius_mm;
+        ce.length_mm = e.length_mm;
+        ce.points = {truth.vessel_nodes[static_cast<std::size_t>(e.from)].position,
+                     truth.vessel_nodes[static_cast<std::size_t>(e.to)].position};
+        ce.point_radius = {e.radius_mm, e.radius_mm};
+        g.edges.push_back(std::move(ce));
+    }
+    return g;
+}
+
+std::size_t add_vessel_gap(PhantomResult& ph, const PhantomParams& params, int edge, double start_mm, double length_mm,
+                           double contrast_fraction)
+{
+    if (edge < 0 || edge >= static_cast<int>(ph.truth.vessel_edges.size()))
+        throw core::InvalidInputError("add_vessel_gap: no vessel edge " + std::to_string(edge));
+    if (!(contrast_fraction >= 0 && contrast_fraction <= 1))
+        throw core::InvalidInputError("add_vessel_gap: the contrast fraction must be in [0, 1]");
+    const VesselEdge& e = ph.truth.vessel_edges[static_cast<std::size_t>(edge)];
+    const Vec3 a = ph.truth.vessel_nodes[static_cast<std::size_t>(e.from)].position;
+    const Vec3 b = ph.truth.vessel_nodes[static_cast<std::size_t>(e.to)].position;
+    const Vec3 axis = normalized(b - a);
+    const double vessel_hu = e.tree == VesselTree::Portal ? params.hu.portal_vein : params.hu.hepatic_vein;
+    const double drop = (1 - contrast_fraction) * (vessel_hu - params.hu.liver);
+    const Vec3 lo_p = a + axis * start_mm, hi_p = a + axis * (start_mm + length_mm);
+    const double reach = e.radius_mm + 1.0;
+    const core::ImageGeometry& g = ph.ct;
+    std::array<int, 3> lo{}, hi{};
+    for (int d = 0; d < 3; ++d) {
+        const Vec3 c0 = g.physical_to_index(lo_p), c1 = g.physical_to_index(hi_p);
+        lo[static_cast<std::size_t>(d)] = std::max(0, static_cast<int>(std::floor(std::min(c0[d], c1[d]) - reach / g.spacing[static_cast<std::size_t>(d)] - 1)));
+        hi[static_cast<std::size_t>(d)] = std::min(g.size[static_cast<std::size_t>(d)] - 1,
+                                                   static_cast<int>(std::ceil(std::max(c0[d], c1[d]) + reach / g.spacing[static_cast<std::size_t>(d)] + 1)));
+    }
+    std::size_t changed = 0;
+    for (int k = lo[2]; k <= hi[2]; ++k)
+        for (int j = lo[1]; j <= hi[1]; ++j)
+            for (int i = lo[0]; i <= hi[0]; ++i) {
+                const Vec3 p = g.index_to_physical(i, j, k);
+                const double t = dot(p - a, axis);
+                if (t < start_mm || t > start_mm + length_mm)
+                    continue;
+                const double d = norm(p - (a + axis * t));
+                // full drop inside the tube, fading over the partial-volume rim
+                const double w = std::clamp((e.radius_mm + 0.5 - d) / 1.0, 0.0, 1.0);
+                if (w <= 0)
+                    continue;
+                auto& v = ph.ct.at(i, j, k);
+                v = static_cast<std::int16_t>(std::lround(std::clamp(v - w * drop, -1024.0, 3071.0)));
+                ++changed;
+            }
+    return changed;
+}
+
 } // namespace lobe::phantom

@@ -21,6 +21,7 @@
 //! (the project-wide tissue labels; the liver mask is {1,2,3,4}, the SLIVER07 convention), and
 //! neighbours from 10 up (see Label).
 
+#include "lobe/core/centreline_graph.h"
 #include "lobe/core/image3d.h"
 #include "lobe/core/types.h"
 
@@ -201,6 +202,19 @@ std::array<int, 3> size_for_spacing(const std::array<double, 3>& spacing);
 
 //! Why the parameters are invalid, or an empty string if they are valid.
 std::string params_problem(const PhantomParams& params);
+
+//! The truth's vessel trees as a centre-line graph (label 2 portal, 3 hepatic; straight
+//! two-point polylines with the edge radius), the form lobe's vessel segmentation is compared in.
+core::CentrelineGraph truth_graph(const PhantomTruth& truth);
+
+//! A failure case for vessel segmentation: a gap in contrast along vessel edge `edge` of the
+//! truth (a stenosis or poorly filled stretch). Over `length_mm` of its centre line starting
+//! `start_mm` from its `from` node, the vessel's contrast above the liver is scaled by
+//! `contrast_fraction` (0 = invisible) in the CT; the noise and the labels stay (the vessel is
+//! there, it is just not seen). Returns the number of voxels changed.
+//! \throw core::InvalidInputError for an edge out of range or a fraction outside [0, 1].
+std::size_t add_vessel_gap(PhantomResult& phantom, const PhantomParams& params, int edge, double start_mm,
+                           double length_mm, double contrast_fraction);
 
 //! Generates the phantom. Deterministic: the same parameters give the same bytes; the seed
 //! changes only the noise. Single-threaded; about 3 s for the default grid on one core.

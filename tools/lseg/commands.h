@@ -17,5 +17,8 @@ Command add_eval(CLI::App& lseg); //!< lseg eval SEG REF: Dice, the SLIVER07 mea
 Command add_snake(CLI::App& lseg); //!< lseg snake IMAGE: CDSG / GGVF / GAC active contours
 Command add_train(CLI::App& lseg); //!< lseg train --image --labels ... -o: the shape memory
 Command add_liver(CLI::App& lseg); //!< lseg liver IMAGE -o OUT.h5: automatic liver segmentation
+Command add_vessels(CLI::App& lseg); //!< lseg vessels IMAGE -o OUT.h5: hepatic vessel trees
+Command add_tumours(CLI::App& lseg); //!< lseg tumours IMAGE -o OUT.h5: liver tumours
+Command add_all(CLI::App& lseg);     //!< lseg all IMAGE -o OUT.h5: liver, vessels, tumours in one label volume
 
 } // namespace lobe::lseg

@@ -48,12 +48,19 @@ struct XdmfSimulation {
     std::vector<XdmfEpoch> epochs; // epochs[0] is the mesh's
 };
 
+struct XdmfGraph {
+    std::string name;          // /graphs/<name>/{points,segments,point_radius,segment_level,segment_label}
+    std::size_t points = 0;
+    std::size_t segments = 0;
+};
+
 struct XdmfContents {
     std::vector<XdmfVolume> images;
     std::vector<XdmfVolume> labels;
     std::vector<XdmfSurface> surfaces;
     std::vector<XdmfTetMesh> meshes;
     std::vector<XdmfSimulation> simulations;
+    std::vector<XdmfGraph> graphs;
 };
 
 // The XDMF 3 document describing `contents`, whose heavy data lives in `h5_file_name`

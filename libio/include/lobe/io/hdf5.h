@@ -15,6 +15,9 @@
 //!     /simulation/NAME/     attr mesh; times (F), positions (F,n,3) [mm]; epochs/K/ after topology changes;
 //!                           steps/{time,dt,force,energy};
 //!                           statistics/ (float64 attributes), attr status
+//!     /graphs/NAME/         centre-line graph: nodes (n,3), node_radius (n), edges (m,2) int32,
+//!                           edge_level/edge_label (m) int32, edge_radius/edge_length (m), polylines:
+//!                           points (p,3), point_radius (p), edge_offsets (m+1) int64
 //! Geometry attributes are in ITK's (x, y, z) order although the dataset dimensions are (z, y, x).
 //!
 //! Errors: core::IoError when a file cannot be opened, read or written or is not HDF5 at all;
@@ -26,6 +29,7 @@
 //! different threads (Debian's HDF5 is the thread-safe build, which serialises its calls).
 
 #include "lobe/core/any_image.h"
+#include "lobe/core/centreline_graph.h"
 #include "lobe/core/tet_mesh.h"
 #include "lobe/core/tri_mesh.h"
 
@@ -184,6 +188,11 @@ public:
     void finish_simulation(const std::string& name, const std::vector<std::pair<std::string, double>>& statistics,
                            const std::string& status = "completed");
 
+    //! Writes /graphs/<name>: a centre-line graph (vessel trees) with its polylines, radii, branch
+    //! levels, tissue labels and edge names (docs/file-format.md, /graphs).
+    //! \throw core::InvalidInputError if core::graph_problem() rejects it or it exceeds the limits
+    void write_graph(const std::string& name, const core::CentrelineGraph& graph);
+
     //! Appends a provenance record as /provenance/NNN_<tool>, NNN counting from 000 in call order.
     void write_provenance(const Provenance& record);
 
@@ -225,6 +234,7 @@ public:
     std::vector<std::string> surfaces() const;
     std::vector<std::string> tet_meshes() const;
     std::vector<std::string> simulations() const;
+    std::vector<std::string> graphs() const;
 
     //! Pixel type and geometry of /images/<name>, without reading the pixels.
     ImageInfo image_info(const std::string& name) const;
@@ -237,6 +247,8 @@ public:
     TetMeshData read_tet_mesh(const std::string& name) const;
     //! Everything of /simulation/<name> but the frames.
     SimulationInfo read_simulation(const std::string& name) const;
+    //! /graphs/<name>, checked with core::graph_problem and for consistent sizes and offsets.
+    core::CentrelineGraph read_graph(const std::string& name) const;
     //! Node positions [mm] of frame `index` (0-based) of /simulation/<name>.
     std::vector<core::Vec3> read_frame(const std::string& name, std::size_t index) const;
     //! Frame `index` as a mesh: its positions as vertices, the tets and labels of its topology.
