@@ -3,6 +3,7 @@
 #include "lobe/mesh/tetrahedralize.h"
 
 #include "lobe/core/errors.h"
+#include "detail/manifold_repair.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Image_3.h>
@@ -22,6 +23,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <memory>
@@ -382,7 +384,7 @@ void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr,
 template <class Tag>
 void run_mesh_3(const Domain& domain, const SizingField& field, double facet_distance, const Prepared& pr,
                 const core::ImageGeometry& g, const MeshParams& p, const std::function<void(const std::string&)>& say,
-                core::TetMesh& out)
+                core::TetMesh& out, MeshResult::ManifoldRepair& repair)
 {
     using Tr = typename CGAL::Mesh_triangulation_3<Domain, CGAL::Default, Tag>::type;
     using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
@@ -418,24 +420,66 @@ void run_mesh_3(const Domain& domain, const SizingField& field, double facet_dis
     }
 
     say("extracting the mesh");
-    const bool flip = det3(g) < 0;
-    std::unordered_map<typename Tr::Vertex_handle, std::int32_t> index;
-    for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c) {
-        std::array<std::int32_t, 4> t{};
+    // Every finite cell of the triangulation, labelled (0 outside the domain), with its
+    // neighbours: the manifold repair needs the cells outside the domain too, to tell whether
+    // two outside regions around a vertex are one.
+    const auto& tr = c3t3.triangulation();
+    detail::LabelledCells cells;
+    std::unordered_map<typename Tr::Vertex_handle, std::int32_t> vindex;
+    std::unordered_map<typename Tr::Cell_handle, std::int32_t> cindex;
+    for (auto c : tr.finite_cell_handles())
+        cindex.emplace(c, static_cast<std::int32_t>(cindex.size()));
+    cells.cells.resize(cindex.size());
+    cells.neighbours.resize(cindex.size());
+    cells.labels.resize(cindex.size());
+    cells.fixed.resize(cindex.size());
+    std::size_t cu = 0;
+    for (auto c : tr.finite_cell_handles()) { // the same order as cindex: runs repeat exactly
         for (int i = 0; i < 4; ++i) {
             const auto v = c->vertex(i);
-            auto it = index.find(v);
-            if (it == index.end()) {
-                const auto& q = c3t3.triangulation().point(v).point();
-                it = index.emplace(v, static_cast<std::int32_t>(out.vertices.size())).first;
-                out.vertices.push_back(to_physical(g, Vec3{q.x(), q.y(), q.z()}));
+            auto it = vindex.find(v);
+            if (it == vindex.end()) {
+                const auto& q = tr.point(v).point();
+                it = vindex.emplace(v, static_cast<std::int32_t>(cells.vertices.size())).first;
+                cells.vertices.push_back(Vec3{q.x(), q.y(), q.z()});
             }
-            t[static_cast<std::size_t>(i)] = it->second;
+            cells.cells[cu][static_cast<std::size_t>(i)] = it->second;
+            const auto n = c->neighbor(i);
+            const auto nt = cindex.find(n);
+            cells.neighbours[cu][static_cast<std::size_t>(i)] = nt == cindex.end() ? -1 : nt->second;
+        }
+        const bool in = c3t3.is_in_complex(c);
+        cells.labels[cu] = in ? static_cast<int>(c3t3.subdomain_index(c)) : 0;
+        cells.fixed[cu] = in ? 0 : 1;
+        ++cu;
+    }
+    if (p.repair_manifold) {
+        say("repairing non-manifold tissue boundaries");
+        const auto s = detail::repair_manifold(cells);
+        repair.bad_vertices_before = s.bad_vertices_before;
+        repair.bad_vertices_after = s.bad_vertices_after;
+        repair.tets_relabelled = s.relabelled;
+        repair.tets_removed = s.removed;
+        repair.volume = s.volume;
+    }
+    const bool flip = det3(g) < 0;
+    std::vector<std::int32_t> index(cells.vertices.size(), -1);
+    for (std::size_t c = 0; c < cells.cells.size(); ++c) {
+        if (cells.labels[c] == 0)
+            continue;
+        std::array<std::int32_t, 4> t{};
+        for (std::size_t i = 0; i < 4; ++i) {
+            const auto v = static_cast<std::size_t>(cells.cells[c][i]);
+            if (index[v] < 0) {
+                index[v] = static_cast<std::int32_t>(out.vertices.size());
+                out.vertices.push_back(to_physical(g, cells.vertices[v]));
+            }
+            t[i] = index[v];
         }
         if (flip)
             std::swap(t[0], t[1]);
         out.tets.push_back(t);
-        out.tet_labels.push_back(static_cast<std::int32_t>(c3t3.subdomain_index(c)));
+        out.tet_labels.push_back(cells.labels[c]);
     }
 }
 
@@ -563,14 +607,23 @@ MeshResult mesh_labels(const core::LabelImage3D& labels, const MeshParams& p)
     say("meshing on " + std::to_string(threads) + " thread(s), " + std::to_string(pr.comps.size()) + " components");
     if (threads > 1) {
         tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
-        run_mesh_3<CGAL::Parallel_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
+        run_mesh_3<CGAL::Parallel_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh, result.manifold_repair);
     } else {
-        run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
+        run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh, result.manifold_repair);
     }
 #else
     result.threads = 1;
-    run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
+    run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh, result.manifold_repair);
 #endif
+    if (const auto& r = result.manifold_repair; r.bad_vertices_before > 0) {
+        char buf[300];
+        std::snprintf(buf, sizeof buf,
+                      "non-manifold tissue boundaries at %lld vertices: %lld tets relabelled (%lld of them removed), "
+                      "%.1f mm^3; %lld vertices left",
+                      static_cast<long long>(r.bad_vertices_before), static_cast<long long>(r.tets_relabelled),
+                      static_cast<long long>(r.tets_removed), r.volume, static_cast<long long>(r.bad_vertices_after));
+        result.warnings.push_back(buf);
+    }
     auto& out = result.mesh;
     // CGAL cells are positively oriented; drop any tet that rounding flattened (none expected).
     {

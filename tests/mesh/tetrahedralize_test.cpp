@@ -2,6 +2,7 @@
 
 #include "lobe/core/errors.h"
 #include "lobe/mesh/quality.h"
+#include "lobe/mesh/surface.h"
 #include "mesh/label_shapes.h"
 
 #include <gtest/gtest.h>
@@ -300,4 +301,55 @@ TEST(MeshLabels, RegionOfInterestIsFinerInsideAndGradedOutside)
     std::printf("ROI: mean edge inside %.2f mm (%d tets), beyond 20 mm %.2f mm (%d tets), total %zu\n",
                 in_sum / in_n, in_n, out_sum / out_n, out_n, m.tets.size());
     EXPECT_LT(in_sum / in_n, 0.6 * (out_sum / out_n));
+}
+
+TEST(MeshLabels, PiecesTouchingAlongAnEdgeGiveManifoldSurfaces)
+{
+    // Two 9-voxel blocks of one label that touch only along a voxel edge (the line x = y = 11.5):
+    // the phantom's defect in small (two sides of its fissure, or liver around a thin vessel,
+    // meeting along an edge). CGAL fills the contact with thin tets, so without the repair
+    // the tissue surface and the outer one are non-manifold along that line; with it, every
+    // surface must be closed, manifold, oriented and free of self-intersections, the repair
+    // reported, and the volume it moved small: the contact is a line, so only slivers along it
+    // change (measured 1.4 mm^3; bound 1% of the 2916 mm^3 of label).
+    auto img = test::empty_labels(24);
+    test::paint_box(img, {3, 3, 3}, {11, 11, 20}, 1);
+    test::paint_box(img, {12, 12, 3}, {20, 20, 20}, 1);
+    mesh::MeshParams p;
+    p.size = 3;
+    p.threads = 1;
+    auto defects = [](const core::TetMesh& m) {
+        std::int64_t n = 0;
+        for (const auto& s : mesh::tissue_surfaces(m)) {
+            const auto c = mesh::check_surface(s.surface);
+            n += c.non_manifold_edges + c.non_manifold_vertices;
+        }
+        return n;
+    };
+    p.repair_manifold = false;
+    const auto raw = mesh::mesh_labels(img, p);
+    const auto raw_defects = defects(raw.mesh);
+    std::printf("without repair: %lld non-manifold edges and vertices\n", static_cast<long long>(raw_defects));
+    EXPECT_GT(raw_defects, 0); // the defect is reproduced: the check below means something
+
+    p.repair_manifold = true;
+    const auto res = mesh::mesh_labels(img, p);
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    const auto& r = res.manifold_repair;
+    std::printf("repair: %lld bad vertices -> %lld, %lld tets relabelled (%lld removed), %.2f mm^3\n",
+                static_cast<long long>(r.bad_vertices_before), static_cast<long long>(r.bad_vertices_after),
+                static_cast<long long>(r.tets_relabelled), static_cast<long long>(r.tets_removed), r.volume);
+    EXPECT_GT(r.bad_vertices_before, 0);
+    EXPECT_EQ(r.bad_vertices_after, 0);
+    for (const auto& s : mesh::tissue_surfaces(res.mesh)) {
+        const auto c = mesh::check_surface(s.surface);
+        EXPECT_TRUE(c.ok()) << "label " << s.label << ": " << mesh::describe(c);
+    }
+    const double label_volume = 2 * 9.0 * 9 * 18;
+    EXPECT_LT(r.volume, 0.01 * label_volume);
+    bool reported = false;
+    for (const auto& w : res.warnings)
+        reported = reported || w.find("non-manifold") != std::string::npos;
+    EXPECT_TRUE(reported);
+    EXPECT_NEAR(res.tissues[0].mesh_volume, label_volume, 0.1 * label_volume);
 }

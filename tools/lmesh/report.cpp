@@ -46,6 +46,10 @@ nlohmann::json report_json(const Report& r)
     j["mesh"] = {{"vertices", res.mesh.vertices.size()}, {"tets", res.mesh.tets.size()}, {"element_size_mm", res.size},
                  {"threads", res.threads}, {"padded", res.padded}, {"reference_edge_mm", q.reference_edge}};
     j["warnings"] = res.warnings;
+    const auto& mr = res.manifold_repair;
+    j["manifold_repair"] = {{"bad_vertices_before", mr.bad_vertices_before}, {"bad_vertices_after", mr.bad_vertices_after},
+                            {"tets_relabelled", mr.tets_relabelled}, {"tets_removed", mr.tets_removed},
+                            {"volume_mm3", mr.volume}};
     for (const auto& t : res.tissues) {
         nlohmann::json tj{{"label", t.label},
                           {"name", name_of(r, t.label)},

@@ -54,6 +54,9 @@ struct MeshParams {
     bool odt = false;                     //!< ODT smoothing before perturb/exude (slow)
     double optimisation_time_limit = 30;  //!< per optimisation pass [s]; 0 = none
     double sliver_bound = 12;             //!< perturb/exude target: min dihedral angle [deg]
+    bool repair_manifold = true;          //!< relabel the few tets where a tissue (or the whole
+                                          //!< mesh) touches itself along an edge or at a vertex,
+                                          //!< so that every tissue surface is a manifold
     int min_component_voxels = 8;         //!< smaller connected components (6-connected) are
                                           //!< specks: relabelled to their neighbours' majority
     std::int64_t max_tets = 5'000'000;    //!< refuse requests estimated above this
@@ -93,6 +96,14 @@ struct MeshResult {
     bool padded = false;                    //!< a tissue touched the volume border: padded by one
                                             //!< voxel of background so that it is closed there
     double size = 0;                        //!< the element size used [mm]
+    //! Manifold repair (MeshParams::repair_manifold): vertices where a tissue's region or the
+    //! whole mesh touched itself, before and after; the tets relabelled (to another tissue, or
+    //! removed) and their volume. The tissue volumes above are those after the repair.
+    struct ManifoldRepair {
+        std::int64_t bad_vertices_before = 0, bad_vertices_after = 0;
+        std::int64_t tets_relabelled = 0, tets_removed = 0;
+        double volume = 0; //!< [mm^3]
+    } manifold_repair;
     int threads = 1;                        //!< threads used
     std::vector<std::string> warnings;      //!< specks dropped, pieces not meshed, ...
 };
