@@ -333,31 +333,49 @@ void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr,
     auto frame = [&](int i, int j, int k) {
         return Point((i - pr.pad) * g.spacing[0], (j - pr.pad) * g.spacing[1], (k - pr.pad) * g.spacing[2]);
     };
-    // Collect boundary voxels per component, keeping every n-th so that the points spread out.
-    std::vector<std::vector<std::pair<std::size_t, int>>> boundary(pr.comps.size());
-    std::vector<std::int64_t> seen(pr.comps.size(), 0);
-    for (std::size_t s = 0; s < img.data.size(); ++s) {
-        const int c = pr.component[s];
-        if (c < 0)
-            continue;
-        const int i = static_cast<int>(s % static_cast<std::size_t>(nx));
-        const int j = static_cast<int>((s / static_cast<std::size_t>(nx)) % static_cast<std::size_t>(ny));
-        const int k = static_cast<int>(s / (static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny)));
+    // Boundary voxels per component, and each component's centroid; then every n-th boundary
+    // voxel so that the points spread over the whole component.
+    auto boundary_face = [&](std::size_t s, int i, int j, int k) {
         const int nb[6][3] = {{i - 1, j, k}, {i + 1, j, k}, {i, j - 1, k}, {i, j + 1, k}, {i, j, k - 1}, {i, j, k + 1}};
         for (int d = 0; d < 6; ++d) {
             const auto& q = nb[d];
-            const bool other = !img.contains(q[0], q[1], q[2]) || img.at(q[0], q[1], q[2]) != img.data[s];
-            if (!other)
-                continue;
-            // Reservoir-free thinning: keep the first points and then one in every 2^m.
-            const auto cnt = seen[static_cast<std::size_t>(c)]++;
-            auto& b = boundary[static_cast<std::size_t>(c)];
-            const auto stride = std::max<std::int64_t>(1, pr.comps[static_cast<std::size_t>(c)].voxels / 16);
-            if (static_cast<int>(b.size()) < per_component && cnt % stride == 0)
-                b.emplace_back(s, d);
-            break;
+            if (!img.contains(q[0], q[1], q[2]) || img.at(q[0], q[1], q[2]) != img.data[s])
+                return d;
         }
-    }
+        return -1;
+    };
+    std::vector<std::int64_t> count(pr.comps.size(), 0);
+    std::vector<Vec3> centroid(pr.comps.size());
+    for (int k = 0; k < img.size[2]; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const std::size_t s = img.index(i, j, k);
+                const int c = pr.component[s];
+                if (c < 0)
+                    continue;
+                const auto cu = static_cast<std::size_t>(c);
+                centroid[cu] += Vec3{double(i), double(j), double(k)};
+                if (boundary_face(s, i, j, k) >= 0)
+                    ++count[cu];
+            }
+    std::vector<std::vector<std::pair<std::size_t, int>>> boundary(pr.comps.size());
+    std::vector<std::int64_t> seen(pr.comps.size(), 0);
+    for (int k = 0; k < img.size[2]; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const std::size_t s = img.index(i, j, k);
+                const int c = pr.component[s];
+                if (c < 0)
+                    continue;
+                const int d = boundary_face(s, i, j, k);
+                if (d < 0)
+                    continue;
+                const auto cu = static_cast<std::size_t>(c);
+                const auto stride = std::max<std::int64_t>(1, count[cu] / per_component);
+                auto& b = boundary[cu];
+                if (static_cast<int>(b.size()) < per_component && seen[cu]++ % stride == 0)
+                    b.emplace_back(s, d);
+            }
     auto cwp = c3t3.triangulation().geom_traits().construct_weighted_point_3_object();
     auto intersect = domain.construct_intersection_object();
     for (std::size_t c = 0; c < boundary.size(); ++c)
@@ -377,6 +395,26 @@ void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr,
                 c3t3.set_index(v, std::get<1>(x));
             }
         }
+    // One interior point per component, at its centroid's voxel when that voxel lies inside
+    // the component with all its face neighbours. Points on a sphere alone are cospherical:
+    // their Delaunay cells all share one circumcentre, and when it lies outside the tissue (the
+    // 4/5 sphere's centre is on its cut) no dual edge crosses the boundary, CGAL finds no
+    // facet to start from and meshes nothing. That happened to the 4/5 sphere test when the
+    // boundary points were the first few of the scan; the even spread above fixed it, and the
+    // interior point keeps it from depending on where the spread falls.
+    for (std::size_t c = 0; c < pr.comps.size(); ++c) {
+        const Vec3 m = centroid[c] / static_cast<double>(pr.comps[c].voxels);
+        const int i = static_cast<int>(std::lround(m.x)), j = static_cast<int>(std::lround(m.y)),
+                  k = static_cast<int>(std::lround(m.z));
+        if (!img.contains(i, j, k) || pr.component[img.index(i, j, k)] != static_cast<int>(c) ||
+            boundary_face(img.index(i, j, k), i, j, k) >= 0)
+            continue;
+        auto v = c3t3.triangulation().insert(cwp(frame(i, j, k)));
+        if (v != typename C3t3::Triangulation::Vertex_handle()) {
+            c3t3.set_dimension(v, 3);
+            c3t3.set_index(v, typename Domain::Index(static_cast<int>(pr.comps[c].label)));
+        }
+    }
 }
 
 // CGAL's refinement and optimisation, then the complex's cells as a TetMesh in physical space.

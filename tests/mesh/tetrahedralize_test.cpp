@@ -4,6 +4,7 @@
 #include "lobe/mesh/quality.h"
 #include "lobe/mesh/surface.h"
 #include "mesh/label_shapes.h"
+#include "mesh/surface_distance.h"
 
 #include <gtest/gtest.h>
 
@@ -352,4 +353,115 @@ TEST(MeshLabels, PiecesTouchingAlongAnEdgeGiveManifoldSurfaces)
         reported = reported || w.find("non-manifold") != std::string::npos;
     EXPECT_TRUE(reported);
     EXPECT_NEAR(res.tissues[0].mesh_volume, label_volume, 0.1 * label_volume);
+}
+
+namespace {
+
+// Quality and accuracy of a one-tissue mesh of an analytic shape, printed for the record.
+struct ShapeCheck {
+    double volume = 0, min_dihedral = 0, max_radius_edge = 0, below_03 = 0;
+    test::HausdorffResult hausdorff;
+};
+
+ShapeCheck check_shape(const char* name, const mesh::MeshResult& res, const core::LabelImage3D& img, double exact,
+                       double secs)
+{
+    const auto& m = res.mesh;
+    ShapeCheck c;
+    c.volume = label_mesh_volume(m, 1);
+    const auto q = mesh::evaluate_quality(m);
+    c.min_dihedral = q.all.min_dihedral_deg;
+    c.max_radius_edge = q.all.max_radius_edge_ratio;
+    const auto& comb = q.all.measures[static_cast<int>(mesh::Measure::Combined)];
+    c.below_03 = double(comb.bands[0]) / double(comb.count);
+    c.hausdorff = test::hausdorff_to_labels(m, img, 2 * img.spacing[2]);
+    std::printf("%s: %zu tets in %.2f s, volume %.1f mm^3 (exact %.1f, %+.2f%%; voxels %.1f), Hausdorff to the label "
+                "surface %.3f / %.3f mm, dihedral >= %.1f deg, max B %.2f, combined < 0.3: %.1f%%\n",
+                name, m.tets.size(), secs, c.volume, exact, 100 * (c.volume / exact - 1), res.tissues[0].label_volume,
+                c.hausdorff.mesh_to_labels, c.hausdorff.labels_to_mesh, c.min_dihedral, c.max_radius_edge,
+                100 * c.below_03);
+    return c;
+}
+
+} // namespace
+
+TEST(MeshLabels, FourFifthsSphere)
+{
+    // The thesis's 4/5 sphere (Fig 6.16-6.18): a ball of radius 10 mm with a fifth removed, the
+    // wedge of azimuth [0, 72) degrees about the vertical axis through its centre; exact volume
+    // 4/5 x 4/3 pi r^3 = 3351 mm^3. It has what the plain sphere lacks: two flat faces, a concave
+    // edge (the axis) and two convex half-circle rims. 1 mm voxels, the centre between voxel
+    // centres.
+    const double r = 10;
+    const Vec3 c{13.5, 13.5, 13.5};
+    auto img = test::empty_labels(28);
+    for (int k = 0; k < 28; ++k)
+        for (int j = 0; j < 28; ++j)
+            for (int i = 0; i < 28; ++i) {
+                const Vec3 d = Vec3{double(i), double(j), double(k)} - c;
+                const double phi = std::atan2(d.y, d.x) * 180 / kPi;
+                if (core::norm(d) <= r && !(phi >= 0 && phi < 72))
+                    img.at(i, j, k) = 1;
+            }
+    mesh::MeshParams p;
+    p.size = 2.5;
+    p.threads = 1;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto res = mesh::mesh_labels(img, p);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    const double exact = 0.8 * 4.0 / 3 * kPi * r * r * r;
+    const auto s = check_shape("4/5 sphere", res, img, exact, secs);
+    // Volume (measured -0.7%): the voxels hold the shape to 0.2%; CGAL does not keep sharp
+    // edges on an image domain, so it cuts the convex rims and fills the concave axis by up to
+    // a voxel; the plain sphere's 4% covers both.
+    EXPECT_NEAR(s.volume, exact, 0.04 * exact);
+    // Boundary within a voxel of the label surface, both ways (the Hausdorff bound;
+    // measured 0.37 mm from the mesh, 0.80 mm from the label surface, at the cut rims).
+    EXPECT_LT(s.hausdorff.max(), 1.0);
+    // Quality: perturb and exude aim at 12 degrees and reach it here (serial runs repeat
+    // exactly); the bound is 10. About 16% of the tets rate below 0.3 on the combined
+    // measure (the phantom's 13%): bounded at 20%, the combined measure is not optimised.
+    EXPECT_GT(s.min_dihedral, 10.0);
+    EXPECT_LT(s.below_03, 0.2);
+}
+
+TEST(MeshLabels, ParaboloidIntrusionIntoACuboid)
+{
+    // The thesis's paraboloid intrusion pressed into a cuboid (Fig 6.19): a 24 x 24 x 15 mm
+    // box (1 x 1 x 1.5 mm voxels, anisotropic on purpose) whose top face is pushed in by a
+    // paraboloid of rim radius R = 8 mm and depth d = 7.5 mm, z = top - d (1 - rho^2 / R^2).
+    // Exact volume: box - pi R^2 d / 2 = 8640 - 754 = 7886 mm^3.
+    core::ImageGeometry g;
+    g.size = {30, 30, 14};
+    g.spacing = {1.0, 1.0, 1.5};
+    core::LabelImage3D img(g, 0);
+    const Vec3 lo{2.5, 2.5, 1.5 * 1.5}, hi{26.5, 26.5, 1.5 * 11.5};
+    const double R = 8, depth = 7.5, xc = 14.5, yc = 14.5;
+    for (int k = 0; k < g.size[2]; ++k)
+        for (int j = 0; j < g.size[1]; ++j)
+            for (int i = 0; i < g.size[0]; ++i) {
+                const Vec3 q = img.index_to_physical(i, j, k);
+                if (q.x < lo.x || q.x > hi.x || q.y < lo.y || q.y > hi.y || q.z < lo.z || q.z > hi.z)
+                    continue;
+                const double rho2 = (q.x - xc) * (q.x - xc) + (q.y - yc) * (q.y - yc);
+                if (rho2 < R * R && q.z > hi.z - depth * (1 - rho2 / (R * R)))
+                    continue;
+                img.at(i, j, k) = 1;
+            }
+    mesh::MeshParams p;
+    p.size = 2.5;
+    p.threads = 1;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto res = mesh::mesh_labels(img, p);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    const double exact = (hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z) - kPi * R * R * depth / 2;
+    const auto s = check_shape("paraboloid in cuboid", res, img, exact, secs);
+    // The same bounds as the 4/5 sphere, for the same reasons; the Hausdorff bound is the
+    // smallest spacing (measured 0.47 / 0.90 mm: the box's edges and corners are chamfered).
+    EXPECT_NEAR(s.volume, exact, 0.04 * exact); // measured -0.8%
+    EXPECT_LT(s.hausdorff.max(), 1.0);
+    EXPECT_GT(s.min_dihedral, 10.0);
+    EXPECT_LT(s.below_03, 0.2);
 }
