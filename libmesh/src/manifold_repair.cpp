@@ -33,6 +33,10 @@ struct Star {
     std::size_t size() const { return cell.size(); }
 };
 
+// A cell may change label this many times: enough for a fix to undo an earlier one nearby, and
+// a bound on the total work.
+constexpr std::uint8_t kMaxChanges = 4;
+
 class Repairer {
 public:
     explicit Repairer(LabelledCells& m) : m_(m)
@@ -50,6 +54,7 @@ public:
             for (auto v : m.cells[c])
                 incident_[fill[static_cast<std::size_t>(v)]++] = static_cast<std::int32_t>(c);
         local_.assign(m.cells.size(), -1);
+        changes_.assign(m.cells.size(), 0);
         volume_.resize(m.cells.size());
         for (std::size_t c = 0; c < m.cells.size(); ++c) {
             const auto& q = m.cells[c];
@@ -126,7 +131,7 @@ private:
             local_[static_cast<std::size_t>(c)] = static_cast<int>(i - b);
             s.cell.push_back(c);
             s.label.push_back(m_.labels[static_cast<std::size_t>(c)]);
-            s.fixed.push_back(m_.fixed[static_cast<std::size_t>(c)]);
+            s.fixed.push_back(m_.fixed[static_cast<std::size_t>(c)] || changes_[static_cast<std::size_t>(c)] >= kMaxChanges);
             s.volume.push_back(volume_[static_cast<std::size_t>(c)]);
         }
         if (s.adj.size() < s.cell.size() + 1)
@@ -356,13 +361,13 @@ private:
                 consider(bridge(cn, kn, [&](int i) { return lab[static_cast<std::size_t>(i)]; }));
             }
             if (best.relabel.empty())
-                return; // every fix is blocked by fixed cells: left for the report
+                return; // every fix is blocked: left for the report
             for (const auto& [node, label] : best.relabel) {
                 const auto c = static_cast<std::size_t>(star_.cell[static_cast<std::size_t>(node)]);
                 if (m_.labels[c] == label)
                     continue;
                 m_.labels[c] = label;
-                m_.fixed[c] = 1; // each cell changes once: the repair terminates
+                ++changes_[c]; // bounded: the repair terminates
                 ++s.relabelled;
                 s.removed += label == 0 ? 1 : 0;
                 s.volume += volume_[c];
@@ -375,6 +380,7 @@ private:
     std::vector<std::size_t> start_;
     std::vector<std::int32_t> incident_;
     std::vector<int> local_;
+    std::vector<std::uint8_t> changes_;
     std::vector<double> volume_;
     Star star_;
     std::vector<int> comp_;

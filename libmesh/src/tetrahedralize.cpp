@@ -275,7 +275,6 @@ struct SizingField {
     std::array<double, 256> by_label{};
     double fallback = 1;
     std::shared_ptr<const RoiFrame> roi;
-    bool ignore_index = false; // facets: one size for every surface patch (see run_mesh_3)
 
     double label_size(int l) const
     {
@@ -286,9 +285,7 @@ struct SizingField {
     FT operator()(const Point& p, const int dim, const Index& index) const
     {
         double s = fallback;
-        if (ignore_index) {
-            // the position-only field of the surface facets
-        } else if (dim == 3) {
+        if (dim == 3) {
             if (const int* sub = boost::get<int>(&index))
                 s = label_size(*sub);
         } else if (dim == 2) {
@@ -298,6 +295,61 @@ struct SizingField {
         if (roi && roi->kind != RegionOfInterest::Kind::None)
             s = std::min(s, roi->size + roi->slope * roi->distance({p.x(), p.y(), p.z()}));
         return s;
+    }
+};
+
+// Position-only fields of the surface facets (why position only: run_mesh_3). A boundary point
+// lies between voxel centres of different labels, so the eight voxels around it hold the
+// tissues it separates; the facet size and the distance bound are the smallest of theirs.
+struct BoundaryMaps {
+    const core::LabelImage3D* labels = nullptr; // padded (Prepared outlives the meshing)
+    int pad = 0;
+    std::array<double, 3> spacing{};
+    std::array<double, 256> size{}, distance{}; // per label [mm]
+
+    template <class F>
+    void around(const Point& p, F&& f) const
+    {
+        const double u[3] = {p.x() / spacing[0] + pad, p.y() / spacing[1] + pad, p.z() / spacing[2] + pad};
+        const int i0 = static_cast<int>(std::floor(u[0])), j0 = static_cast<int>(std::floor(u[1])),
+                  k0 = static_cast<int>(std::floor(u[2]));
+        for (int dk = 0; dk <= 1; ++dk)
+            for (int dj = 0; dj <= 1; ++dj)
+                for (int di = 0; di <= 1; ++di)
+                    if (labels->contains(i0 + di, j0 + dj, k0 + dk))
+                        if (const auto l = labels->at(i0 + di, j0 + dj, k0 + dk); l != 0)
+                            f(static_cast<std::size_t>(l));
+    }
+};
+
+struct FacetSizeField {
+    using FT = K::FT;
+    std::shared_ptr<const BoundaryMaps> maps;
+    std::shared_ptr<const RoiFrame> roi;
+    double fallback = 1; // the smallest tissue size, should no tissue voxel lie around
+
+    FT operator()(const Point& p, const int, const Domain::Index&) const
+    {
+        double s = std::numeric_limits<double>::infinity();
+        maps->around(p, [&](std::size_t l) { s = std::min(s, maps->size[l]); });
+        if (!std::isfinite(s))
+            s = fallback;
+        if (roi && roi->kind != RegionOfInterest::Kind::None)
+            s = std::min(s, roi->size + roi->slope * roi->distance({p.x(), p.y(), p.z()}));
+        return s;
+    }
+};
+
+struct FacetDistanceField {
+    using FT = K::FT;
+    std::shared_ptr<const BoundaryMaps> maps;
+    double fallback = 1; // the smallest tissue tolerance, should no tissue voxel lie around
+
+    FT operator()(const Point& p, const int, const Domain::Index&) const
+    {
+        double d = std::numeric_limits<double>::infinity();
+        maps->around(p, [&](std::size_t l) { d = std::min(d, maps->distance[l]); });
+        return std::isfinite(d) ? d : fallback;
     }
 };
 
@@ -420,7 +472,8 @@ void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr,
 // CGAL's refinement and optimisation, then the complex's cells as a TetMesh in physical space.
 // Serial (Sequential_tag) runs repeat exactly; Parallel_tag runs use TBB and vary run to run.
 template <class Tag>
-void run_mesh_3(const Domain& domain, const SizingField& field, double facet_distance, const Prepared& pr,
+void run_mesh_3(const Domain& domain, const SizingField& field, const FacetSizeField& facet_size,
+                const FacetDistanceField& facet_distance, const Prepared& pr,
                 const core::ImageGeometry& g, const MeshParams& p, const std::function<void(const std::string&)>& say,
                 core::TetMesh& out, MeshResult::ManifoldRepair& repair)
 {
@@ -428,14 +481,11 @@ void run_mesh_3(const Domain& domain, const SizingField& field, double facet_dis
     using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
     using Criteria = CGAL::Mesh_criteria_3<Tr>;
     namespace cp = CGAL::parameters;
-    // Surface facets: one size for every patch (the smallest tissue size, refined towards the
-    // ROI), because a facet size looked up per surface patch made CGAL 5.5's facet refinement
-    // run without end on the phantom (docs/algorithms/meshing.md); tets get per-tissue sizes.
-    SizingField facet_field = field;
-    facet_field.ignore_index = true;
-    for (const auto& c : pr.comps)
-        facet_field.fallback = std::min(facet_field.fallback, field.label_size(c.label));
-    Criteria criteria(cp::facet_angle = p.facet_angle, cp::facet_size = facet_field, cp::facet_distance = facet_distance,
+    // Surface facets get fields of the position only: a facet size looked up per surface patch
+    // index (the smaller of the two tissues' sizes) made CGAL 5.5's facet refinement run without
+    // end on the phantom (docs/algorithms/meshing.md), while the same sizes found from the
+    // voxels around the point finish; tets get per-tissue sizes by subdomain.
+    Criteria criteria(cp::facet_angle = p.facet_angle, cp::facet_size = facet_size, cp::facet_distance = facet_distance,
                       cp::cell_radius_edge_ratio = p.radius_edge_ratio, cp::cell_size = field);
 
     C3t3 c3t3;
@@ -555,12 +605,13 @@ MeshResult mesh_labels(const core::LabelImage3D& labels, const MeshParams& p)
     if (!(p.facet_angle > 0 && p.facet_angle <= 30))
         throw core::InvalidInputError("mesh_labels: facet_angle must be in (0, 30] degrees, got " +
                                       std::to_string(p.facet_angle));
-    if (!(p.curvature_factor > 0) || !(p.grading > 1))
-        throw core::InvalidInputError("mesh_labels: curvature_factor must be > 0 and grading > 1");
+    if (!(p.curvature_factor > 0) || !(p.grading > 1) || !(p.distance_per_size > 0))
+        throw core::InvalidInputError("mesh_labels: curvature_factor and distance_per_size must be > 0 and grading > 1");
     for (const auto& t : p.tissue_sizes)
-        if (!(t.size > 0))
-            throw core::InvalidInputError("mesh_labels: the size of tissue " + std::to_string(t.label) +
-                                          " must be > 0 mm");
+        if (!(t.size >= 0) || !(t.facet_distance >= 0) || !std::isfinite(t.size) || !std::isfinite(t.facet_distance) ||
+            (t.size == 0 && t.facet_distance == 0))
+            throw core::InvalidInputError("mesh_labels: the size and boundary tolerance of tissue " +
+                                          std::to_string(t.label) + " must be >= 0 mm, one of them > 0");
     if (p.roi.kind == RegionOfInterest::Kind::Spheres && (p.roi.centres.empty() || !(p.roi.radius >= 0)))
         throw core::InvalidInputError("mesh_labels: a spherical region of interest needs centres and a radius >= 0");
     if (p.roi.kind == RegionOfInterest::Kind::Box)
@@ -638,20 +689,53 @@ MeshResult mesh_labels(const core::LabelImage3D& labels, const MeshParams& p)
     // Boundary size from the curvature factor: a chord of length s on a circle of radius R
     // deviates s^2 / (8R); bounding the deviation by cf^2 R_min / 8 keeps s <= cf R for R >= R_min.
     const double r_min = p.min_feature_radius > 0 ? p.min_feature_radius : std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
-    const double facet_distance = std::max(p.curvature_factor * p.curvature_factor * r_min / 8, 0.05 * min_spacing);
+    const double cf_distance = std::max(p.curvature_factor * p.curvature_factor * r_min / 8, 0.05 * min_spacing);
+    // Per tissue: the facet size is its element size; the distance bound is the curvature
+    // factor's, or distance_per_size x its size when smaller (a tissue meshed finer than the
+    // rest is thin: a bound the size of a vessel's radius cuts a fifth of its volume), or its own.
+    auto maps = std::make_shared<BoundaryMaps>();
+    maps->labels = &pr.labels;
+    maps->pad = pr.pad;
+    maps->spacing = g.spacing;
+    for (int l = 1; l < 256; ++l) {
+        const auto lu = static_cast<std::size_t>(l);
+        maps->size[lu] = field.label_size(l);
+        maps->distance[lu] = std::min(cf_distance, p.distance_per_size * maps->size[lu]);
+        for (const auto& t : p.tissue_sizes)
+            if (t.label == l && t.facet_distance > 0)
+                maps->distance[lu] = t.facet_distance;
+    }
+    FacetSizeField facet_size;
+    facet_size.maps = maps;
+    facet_size.roi = field.roi;
+    facet_size.fallback = size;
+    FacetDistanceField facet_distance;
+    facet_distance.maps = maps;
+    facet_distance.fallback = cf_distance;
+    for (const auto& c : pr.comps) {
+        facet_size.fallback = std::min(facet_size.fallback, maps->size[static_cast<std::size_t>(c.label)]);
+        facet_distance.fallback = std::min(facet_distance.fallback, maps->distance[static_cast<std::size_t>(c.label)]);
+    }
+    for (auto& t : result.tissues) {
+        t.size = maps->size[static_cast<std::size_t>(t.label)];
+        t.facet_distance = maps->distance[static_cast<std::size_t>(t.label)];
+    }
 #ifdef CGAL_LINKED_WITH_TBB
     const int threads = p.threads > 0 ? p.threads : static_cast<int>(tbb::info::default_concurrency());
     result.threads = threads;
     say("meshing on " + std::to_string(threads) + " thread(s), " + std::to_string(pr.comps.size()) + " components");
     if (threads > 1) {
         tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
-        run_mesh_3<CGAL::Parallel_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh, result.manifold_repair);
+        run_mesh_3<CGAL::Parallel_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
+                                          result.manifold_repair);
     } else {
-        run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh, result.manifold_repair);
+        run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
+                                          result.manifold_repair);
     }
 #else
     result.threads = 1;
-    run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh, result.manifold_repair);
+    run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
+                                          result.manifold_repair);
 #endif
     if (const auto& r = result.manifold_repair; r.bad_vertices_before > 0) {
         char buf[300];

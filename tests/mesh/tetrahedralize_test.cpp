@@ -312,7 +312,7 @@ TEST(MeshLabels, PiecesTouchingAlongAnEdgeGiveManifoldSurfaces)
     // the tissue surface and the outer one are non-manifold along that line; with it, every
     // surface must be closed, manifold, oriented and free of self-intersections, the repair
     // reported, and the volume it moved small: the contact is a line, so only slivers along it
-    // change (measured 1.4 mm^3; bound 1% of the 2916 mm^3 of label).
+    // change (measured 2.1 mm^3; bound 1% of the 2916 mm^3 of label).
     auto img = test::empty_labels(24);
     test::paint_box(img, {3, 3, 3}, {11, 11, 20}, 1);
     test::paint_box(img, {12, 12, 3}, {20, 20, 20}, 1);
@@ -464,4 +464,50 @@ TEST(MeshLabels, ParaboloidIntrusionIntoACuboid)
     EXPECT_LT(s.hausdorff.max(), 1.0);
     EXPECT_GT(s.min_dihedral, 10.0);
     EXPECT_LT(s.below_03, 0.2);
+}
+
+TEST(MeshLabels, ThinTissueKeepsItsVolumeWithItsOwnBoundaryTolerance)
+{
+    // A vessel-like tube (label 2, radius 2.5 mm along x) through a block of liver (label 1) on
+    // thick slices (1 x 1 x 2 mm), sized as lmesh is asked for the phantom (liver 8 mm, vessel
+    // 2.5 mm, curvature factor 2). The boundary facets are chords: a tube loses about
+    // (4/3) delta / R of its cross-section to a tolerance delta, so the curvature factor's
+    // 1 mm (cf^2 x 2 mm / 8, 40% of the radius) cuts it short, the default 0.2 x its size
+    // (0.5 mm) less, and 0.2 mm (8% of the radius) keeps it within 10% of its label volume (the
+    // issue's bound; measured 0.69, 0.82, 0.91: the 2 mm slices cost a few percent more than
+    // the chords) while the block stays within 3%.
+    core::ImageGeometry g;
+    g.size = {40, 28, 14};
+    g.spacing = {1.0, 1.0, 2.0};
+    core::LabelImage3D img(g, 0);
+    for (int k = 1; k < 13; ++k)
+        for (int j = 1; j < 27; ++j)
+            for (int i = 1; i < 39; ++i) {
+                const Vec3 q = img.index_to_physical(i, j, k);
+                const double dy = q.y - 13.5, dz = q.z - 13.0;
+                img.at(i, j, k) = dy * dy + dz * dz <= 2.5 * 2.5 ? 2 : 1;
+            }
+    mesh::MeshParams p;
+    p.size = 8;
+    p.curvature_factor = 2;
+    p.threads = 1;
+    auto run = [&](double per_size, double own) {
+        p.distance_per_size = per_size;
+        p.tissue_sizes = {{2, 2.5, own}};
+        const auto r = mesh::mesh_labels(img, p);
+        EXPECT_EQ(core::mesh_problem(r.mesh), "");
+        std::printf("tube tolerance %.2f mm: %zu tets, tube %.3f, block %.3f of the label volume\n",
+                    r.tissues[1].facet_distance, r.mesh.tets.size(), r.tissues[1].mesh_volume / r.tissues[1].label_volume,
+                    r.tissues[0].mesh_volume / r.tissues[0].label_volume);
+        return r;
+    };
+    const auto coarse = run(1, 0), by_size = run(0.2, 0), fine = run(0.2, 0.2);
+    EXPECT_NEAR(coarse.tissues[1].facet_distance, 1.0, 1e-12);
+    EXPECT_NEAR(by_size.tissues[1].facet_distance, 0.5, 1e-12);
+    EXPECT_NEAR(fine.tissues[1].facet_distance, 0.2, 1e-12);
+    auto ratio = [](const mesh::MeshResult& r, std::size_t t) { return r.tissues[t].mesh_volume / r.tissues[t].label_volume; };
+    EXPECT_LT(ratio(coarse, 1), ratio(by_size, 1));
+    EXPECT_LT(ratio(by_size, 1), ratio(fine, 1));
+    EXPECT_NEAR(ratio(fine, 1), 1.0, 0.10);
+    EXPECT_NEAR(ratio(fine, 0), 1.0, 0.03);
 }

@@ -12,6 +12,7 @@
 #include "lobe/mesh/surface.h"
 #include "lobe/mesh/tetrahedralize.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -25,7 +26,7 @@ struct Options {
     fs::path input, output, png_dir, report, export_dir;
     std::string labels_name, mesh_name = "liver", export_format = "stl";
     std::vector<int> tissues;
-    std::vector<std::string> tissue_sizes;
+    std::vector<std::string> tissue_sizes, tissue_distances;
     std::vector<double> roi, roi_box;
     double roi_size = 0;
     bool no_perturb = false, no_exude = false;
@@ -34,7 +35,7 @@ struct Options {
 };
 
 // "L:MM" -> (label, size).
-mesh::TissueSize parse_tissue_size(const std::string& s)
+mesh::TissueSize parse_tissue_size(const std::string& s, const std::string& option)
 {
     const auto colon = s.find(':');
     try {
@@ -42,7 +43,7 @@ mesh::TissueSize parse_tissue_size(const std::string& s)
             throw std::invalid_argument("no colon");
         return {std::stoi(s.substr(0, colon)), std::stod(s.substr(colon + 1))};
     } catch (const std::exception&) {
-        throw CLI::ValidationError("--tissue-size", "expected LABEL:MM, got '" + s + "'");
+        throw CLI::ValidationError(option, "expected LABEL:MM, got '" + s + "'");
     }
 }
 
@@ -67,7 +68,15 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
     auto& p = o.params;
     p.tissues = o.tissues;
     for (const auto& s : o.tissue_sizes)
-        p.tissue_sizes.push_back(parse_tissue_size(s));
+        p.tissue_sizes.push_back(parse_tissue_size(s, "--tissue-size"));
+    for (const auto& s : o.tissue_distances) {
+        const auto d = parse_tissue_size(s, "--tissue-distance");
+        auto it = std::find_if(p.tissue_sizes.begin(), p.tissue_sizes.end(), [&](const auto& t) { return t.label == d.label; });
+        if (it == p.tissue_sizes.end())
+            p.tissue_sizes.push_back({d.label, 0, d.size});
+        else
+            it->facet_distance = d.size;
+    }
     if (!o.roi.empty()) {
         p.roi.kind = mesh::RegionOfInterest::Kind::Spheres;
         p.roi.centres = {{o.roi[0], o.roi[1], o.roi[2]}};
@@ -216,6 +225,14 @@ int main(int argc, char** argv)
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
     app.add_option("--tissue-size", o.tissue_sizes, "Per-tissue size LABEL:MM, e.g. 2:1.5 (repeatable)")->delimiter(',');
+    app.add_option("--tissue-distance", o.tissue_distances,
+                   "Per-tissue boundary tolerance LABEL:MM (default: the smaller of the curvature factor's and "
+                   "--distance-per-size x the tissue's size)")
+        ->delimiter(',');
+    app.add_option("--distance-per-size", p.distance_per_size,
+                   "Default boundary tolerance of a tissue as a fraction of its element size")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
     auto* roi = app.add_option("--roi", o.roi, "Region of interest: a ball x,y,z,r [mm] where the mesh is fine")
                     ->delimiter(',')
                     ->expected(4);

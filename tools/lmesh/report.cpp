@@ -58,6 +58,8 @@ nlohmann::json report_json(const Report& r)
                           {"mesh_volume_mm3", t.mesh_volume},
                           {"volume_ratio", t.label_volume > 0 ? t.mesh_volume / t.label_volume : 0.0},
                           {"tets", t.tets},
+                          {"element_size_mm", t.size},
+                          {"facet_distance_mm", t.facet_distance},
                           {"components", t.components},
                           {"components_meshed", t.components_meshed},
                           {"specks_dropped", t.specks_dropped}};

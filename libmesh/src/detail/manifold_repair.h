@@ -39,8 +39,8 @@ std::int64_t count_non_manifold_vertices(const LabelledCells& m);
 //! Relabels cells until every label's region is manifold at every vertex: at a bad vertex, the
 //! cheapest (by volume) of dropping a stray piece of a label into its neighbour, filling a
 //! pocket, or opening a bridge of cells between two pieces. Fixed cells never change and
-//! every cell changes at most once, so the repair terminates; a vertex whose fixes are all
-//! blocked stays bad and is counted in bad_vertices_after.
+//! every other cell changes at most four times, so the repair terminates; a vertex whose fixes
+//! are all blocked stays bad and is counted in bad_vertices_after.
 ManifoldRepairStats repair_manifold(LabelledCells& m);
 
 } // namespace lobe::mesh::detail

@@ -15,10 +15,12 @@
 
 namespace lobe::mesh {
 
-//! A per-tissue element size.
+//! A per-tissue element size and boundary tolerance.
 struct TissueSize {
     int label = 0;
-    double size = 0; //!< [mm], as MeshParams::size
+    double size = 0;           //!< [mm], as MeshParams::size; 0 = MeshParams::size
+    double facet_distance = 0; //!< how far the tissue's boundary facets may lie from its label
+                               //!< surface [mm]; 0 = the default (MeshParams::distance_per_size)
 };
 
 //! Region of interest: the mesh is fine (roi.size) inside and coarsens outside it with the
@@ -44,6 +46,10 @@ struct MeshParams {
     double curvature_factor = 1.0;        //!< thesis: boundary element size <= factor x radius of
                                           //!< curvature, for radii >= min_feature_radius
     double min_feature_radius = 0;        //!< [mm] smallest curvature radius resolved; 0 = 1 voxel
+    double distance_per_size = 0.2;       //!< a tissue's boundary tolerance is at most this x its
+                                          //!< element size (and at most the curvature factor's),
+                                          //!< so that tissues meshed finer (vessels) keep their
+                                          //!< volume; TissueSize::facet_distance overrides it
     double facet_angle = 25;              //!< lower bound on surface facet angles [deg] (CGAL: <= 30)
     double radius_edge_ratio = 1.9;       //!< bound B on circumradius / shortest edge (< 2, thesis)
     double grading = 1.5;                 //!< max size ratio between neighbours for the ROI sizing
@@ -84,6 +90,8 @@ struct TissueReport {
     double label_volume = 0;  //!< [mm^3]
     double mesh_volume = 0;   //!< [mm^3]
     std::int64_t tets = 0;
+    double size = 0;           //!< element size used [mm]
+    double facet_distance = 0; //!< boundary tolerance used [mm]
     int components = 0;
     int components_meshed = 0;
     int specks_dropped = 0;   //!< components below min_component_voxels
