@@ -6,6 +6,7 @@
 #include "detail/manifold_repair.h"
 
 #include "lobe/core/tet_mesh.h"
+#include "lobe/mesh/quality.h"
 
 #include <algorithm>
 #include <cmath>
@@ -397,6 +398,48 @@ std::int64_t count_non_manifold_vertices(const LabelledCells& m)
 ManifoldRepairStats repair_manifold(LabelledCells& m)
 {
     return Repairer(m).run();
+}
+
+PeelStats peel_boundary_slivers(LabelledCells& m, double min_angle_deg)
+{
+    auto across = [&](std::size_t c, std::size_t f) {
+        const auto n = m.neighbours[c][f];
+        return n < 0 ? 0 : m.labels[static_cast<std::size_t>(n)];
+    };
+    std::vector<char> on_surface(m.vertices.size(), 0);
+    for (std::size_t c = 0; c < m.cells.size(); ++c)
+        if (m.labels[c] != 0)
+            for (std::size_t f = 0; f < 4; ++f)
+                if (across(c, f) != m.labels[c])
+                    for (std::size_t i = 0; i < 4; ++i)
+                        if (i != f)
+                            on_surface[static_cast<std::size_t>(m.cells[c][i])] = 1;
+    PeelStats s;
+    const double pi = std::acos(-1.0);
+    for (std::size_t c = 0; c < m.cells.size(); ++c) {
+        if (m.labels[c] == 0)
+            continue;
+        const auto& q = m.cells[c];
+        bool outside = false, all = true;
+        for (std::size_t f = 0; f < 4; ++f) {
+            outside = outside || across(c, f) == 0;
+            all = all && on_surface[static_cast<std::size_t>(q[f])];
+        }
+        if (!outside || !all)
+            continue;
+        const auto& a = m.vertices[static_cast<std::size_t>(q[0])];
+        const auto& b = m.vertices[static_cast<std::size_t>(q[1])];
+        const auto& cc = m.vertices[static_cast<std::size_t>(q[2])];
+        const auto& d = m.vertices[static_cast<std::size_t>(q[3])];
+        const auto angles = dihedral_angles(a, b, cc, d);
+        if (*std::min_element(angles.begin(), angles.end()) * 180 / pi >= min_angle_deg)
+            continue;
+        m.labels[c] = 0;
+        m.fixed[c] = 1;
+        ++s.tets;
+        s.volume += std::abs(core::signed_volume(a, b, cc, d));
+    }
+    return s;
 }
 
 } // namespace lobe::mesh::detail

@@ -14,6 +14,9 @@
 #include <CGAL/Random.h>
 #include <CGAL/make_mesh_3.h>
 #include <CGAL/refine_mesh_3.h>
+// after Mesh_3's own headers: they declare the worksharing structures the optimisers use
+#include <CGAL/exude_mesh_3.h>
+#include <CGAL/perturb_mesh_3.h>
 
 #ifdef CGAL_LINKED_WITH_TBB
 #include <tbb/global_control.h>
@@ -475,7 +478,8 @@ template <class Tag>
 void run_mesh_3(const Domain& domain, const SizingField& field, const FacetSizeField& facet_size,
                 const FacetDistanceField& facet_distance, const Prepared& pr,
                 const core::ImageGeometry& g, const MeshParams& p, const std::function<void(const std::string&)>& say,
-                core::TetMesh& out, MeshResult::ManifoldRepair& repair)
+                core::TetMesh& out, MeshResult::ManifoldRepair& repair, MeshResult::Peeled& peeled,
+                std::string& optimisation)
 {
     using Tr = typename CGAL::Mesh_triangulation_3<Domain, CGAL::Default, Tag>::type;
     using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
@@ -499,10 +503,27 @@ void run_mesh_3(const Domain& domain, const SizingField& field, const FacetSizeF
         CGAL::refine_mesh_3(c3t3, domain, criteria,
                             p.lloyd ? CGAL::parameters::lloyd(cp::time_limit = tl) : CGAL::parameters::no_lloyd(),
                             p.odt ? CGAL::parameters::odt(cp::time_limit = tl) : CGAL::parameters::no_odt(),
-                            p.perturb ? CGAL::parameters::perturb(cp::time_limit = tl, cp::sliver_bound = p.sliver_bound)
-                                      : CGAL::parameters::no_perturb(),
-                            p.exude ? CGAL::parameters::exude(cp::time_limit = tl, cp::sliver_bound = p.sliver_bound)
-                                    : CGAL::parameters::no_exude());
+                            CGAL::parameters::no_perturb(), CGAL::parameters::no_exude());
+        // The optimisers run here rather than inside refine_mesh_3 so that their outcome can be
+        // reported: in parallel mode the perturber often stops early ("cannot improve").
+        auto code_name = [](CGAL::Mesh_optimization_return_code c) {
+            switch (c) {
+            case CGAL::BOUND_REACHED: return "bound reached";
+            case CGAL::TIME_LIMIT_REACHED: return "time limit reached";
+            case CGAL::CANT_IMPROVE_ANYMORE: return "cannot improve";
+            default: return "stopped";
+            }
+        };
+        if (p.perturb) {
+            say("perturbing slivers");
+            const auto c = CGAL::perturb_mesh_3(c3t3, domain, cp::time_limit = tl, cp::sliver_bound = p.sliver_bound);
+            optimisation = std::string("perturb: ") + code_name(c);
+        }
+        if (p.exude) {
+            say("exuding slivers");
+            const auto c = CGAL::exude_mesh_3(c3t3, cp::time_limit = tl, cp::sliver_bound = p.sliver_bound);
+            optimisation += std::string(optimisation.empty() ? "" : ", ") + "exude: " + code_name(c);
+        }
     } catch (const std::exception& e) {
         throw core::SolverError(std::string("mesh_labels: CGAL Mesh_3 failed: ") + e.what());
     }
@@ -541,14 +562,33 @@ void run_mesh_3(const Domain& domain, const SizingField& field, const FacetSizeF
         cells.fixed[cu] = in ? 0 : 1;
         ++cu;
     }
+    auto repair_once = [&] {
+        const auto s = detail::repair_manifold(cells);
+        if (repair.tets_relabelled == 0 && repair.bad_vertices_before == 0)
+            repair.bad_vertices_before = s.bad_vertices_before;
+        repair.bad_vertices_after = s.bad_vertices_after;
+        repair.tets_relabelled += s.relabelled;
+        repair.tets_removed += s.removed;
+        repair.volume += s.volume;
+    };
     if (p.repair_manifold) {
         say("repairing non-manifold tissue boundaries");
-        const auto s = detail::repair_manifold(cells);
-        repair.bad_vertices_before = s.bad_vertices_before;
-        repair.bad_vertices_after = s.bad_vertices_after;
-        repair.tets_relabelled = s.relabelled;
-        repair.tets_removed = s.removed;
-        repair.volume = s.volume;
+        repair_once();
+    }
+    if (p.peel_slivers) {
+        // Flat tets on the outer boundary, which the exuder cannot remove (their vertices stay
+        // on the surface); removing one can make a vertex non-manifold, so repair after each
+        // round (the peeled tets stay outside).
+        say("peeling boundary slivers");
+        for (int round = 0; round < 4; ++round) {
+            const auto s = detail::peel_boundary_slivers(cells, p.sliver_bound);
+            peeled.tets += s.tets;
+            peeled.volume += s.volume;
+            if (s.tets == 0)
+                break;
+            if (p.repair_manifold)
+                repair_once();
+        }
     }
     const bool flip = det3(g) < 0;
     std::vector<std::int32_t> index(cells.vertices.size(), -1);
@@ -727,15 +767,15 @@ MeshResult mesh_labels(const core::LabelImage3D& labels, const MeshParams& p)
     if (threads > 1) {
         tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
         run_mesh_3<CGAL::Parallel_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
-                                          result.manifold_repair);
+                                          result.manifold_repair, result.peeled, result.optimisation);
     } else {
         run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
-                                          result.manifold_repair);
+                                          result.manifold_repair, result.peeled, result.optimisation);
     }
 #else
     result.threads = 1;
     run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
-                                          result.manifold_repair);
+                                          result.manifold_repair, result.peeled, result.optimisation);
 #endif
     if (const auto& r = result.manifold_repair; r.bad_vertices_before > 0) {
         char buf[300];

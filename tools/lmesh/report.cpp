@@ -50,6 +50,8 @@ nlohmann::json report_json(const Report& r)
     j["manifold_repair"] = {{"bad_vertices_before", mr.bad_vertices_before}, {"bad_vertices_after", mr.bad_vertices_after},
                             {"tets_relabelled", mr.tets_relabelled}, {"tets_removed", mr.tets_removed},
                             {"volume_mm3", mr.volume}};
+    j["slivers_peeled"] = {{"tets", res.peeled.tets}, {"volume_mm3", res.peeled.volume}};
+    j["optimisation"] = res.optimisation;
     for (const auto& t : res.tissues) {
         nlohmann::json tj{{"label", t.label},
                           {"name", name_of(r, t.label)},
@@ -113,6 +115,12 @@ std::string report_text(const Report& r)
     }
     for (const auto& s : r.surfaces)
         os << "surface " << s.name << ": " << mesh::describe(s.check) << "\n";
+    if (!res.optimisation.empty() || res.peeled.tets > 0) {
+        std::snprintf(buf, sizeof buf, "optimisation: %s; %lld boundary slivers peeled (%.1f mm^3)\n",
+                      res.optimisation.empty() ? "none" : res.optimisation.c_str(), static_cast<long long>(res.peeled.tets),
+                      res.peeled.volume);
+        os << buf;
+    }
     for (const auto& w : res.warnings)
         os << "warning: " << w << "\n";
     os << mesh::format_quality_report(*r.quality);

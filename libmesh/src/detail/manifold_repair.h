@@ -43,4 +43,14 @@ std::int64_t count_non_manifold_vertices(const LabelledCells& m);
 //! are all blocked stays bad and is counted in bad_vertices_after.
 ManifoldRepairStats repair_manifold(LabelledCells& m);
 
+struct PeelStats {
+    std::int64_t tets = 0;
+    double volume = 0; //!< [mm^3]
+};
+
+//! Sets to 0 (outside) and fixes every tissue cell whose smallest dihedral angle is below
+//! `min_angle_deg`, that has a face on the outside (label 0) and whose four vertices all lie on
+//! faces between different labels: a flat cap on the outer boundary.
+PeelStats peel_boundary_slivers(LabelledCells& m, double min_angle_deg);
+
 } // namespace lobe::mesh::detail

@@ -60,6 +60,9 @@ struct MeshParams {
     bool odt = false;                     //!< ODT smoothing before perturb/exude (slow)
     double optimisation_time_limit = 30;  //!< per optimisation pass [s]; 0 = none
     double sliver_bound = 12;             //!< perturb/exude target: min dihedral angle [deg]
+    bool peel_slivers = true;             //!< remove the tets flatter than sliver_bound that lie
+                                          //!< on the outer boundary with all four vertices on
+                                          //!< tissue surfaces (the exuder cannot remove them)
     bool repair_manifold = true;          //!< relabel the few tets where a tissue (or the whole
                                           //!< mesh) touches itself along an edge or at a vertex,
                                           //!< so that every tissue surface is a manifold
@@ -112,6 +115,12 @@ struct MeshResult {
         std::int64_t tets_relabelled = 0, tets_removed = 0;
         double volume = 0; //!< [mm^3]
     } manifold_repair;
+    //! Boundary slivers removed (MeshParams::peel_slivers).
+    struct Peeled {
+        std::int64_t tets = 0;
+        double volume = 0; //!< [mm^3]
+    } peeled;
+    std::string optimisation;               //!< CGAL's perturber and exuder outcomes
     int threads = 1;                        //!< threads used
     std::vector<std::string> warnings;      //!< specks dropped, pieces not meshed, ...
 };
