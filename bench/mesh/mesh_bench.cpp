@@ -73,6 +73,7 @@ struct Row {
     int threads = 1;
     std::size_t tets = 0;
     double seconds = 0, min_dihedral = 0, combined_min = 0, combined_mean = 0, below = 0;
+    std::size_t below_10deg = 0; // tets whose smallest dihedral angle is below 10 degrees
     double roi_below = -1; // % of the tets inside the region of interest below 0.3; -1: none
     std::string volumes;   // label:ratio;...
 };
@@ -81,9 +82,10 @@ std::vector<Row> rows;
 
 void print(const Row& r)
 {
-    std::printf("%-8s %-22s %-40s thr %d: %8zu tets %7.2f s  dihedral >= %5.2f  combined min %.3f mean %.3f <0.3 %5.1f%%",
+    std::printf("%-8s %-20s %-38s thr %d: %8zu tets %7.2f s  dihedral >= %5.2f (%zu < 10)  combined min %.3f mean %.3f "
+                "<0.3 %5.1f%%",
                 r.scene.c_str(), r.mesher.c_str(), r.config.c_str(), r.threads, r.tets, r.seconds, r.min_dihedral,
-                r.combined_min, r.combined_mean, r.below);
+                r.below_10deg, r.combined_min, r.combined_mean, r.below);
     if (r.roi_below >= 0)
         std::printf(" (ROI %.1f%%)", r.roi_below);
     std::printf("  volumes %s\n", r.volumes.c_str());
@@ -96,6 +98,8 @@ void fill_quality(Row& row, const core::TetMesh& m, const mesh::RegionOfInterest
     const auto& comb = q.all.measures[static_cast<int>(mesh::Measure::Combined)];
     row.tets = m.tets.size();
     row.min_dihedral = q.all.min_dihedral_deg;
+    row.below_10deg = static_cast<std::size_t>(
+        std::count_if(q.min_dihedral_deg.begin(), q.min_dihedral_deg.end(), [](double a) { return a < 10; }));
     row.combined_min = comb.min;
     row.combined_mean = comb.mean;
     row.below = 100.0 * double(comb.bands[0]) / double(comb.count);
@@ -284,11 +288,11 @@ int main(int argc, char** argv)
         }
     if (!csv.empty()) {
         std::ofstream o(csv);
-        o << "scene,mesher,config,k,threads,tets,seconds,min_dihedral_deg,combined_min,combined_mean,"
+        o << "scene,mesher,config,k,threads,tets,seconds,min_dihedral_deg,tets_below_10deg,combined_min,combined_mean,"
              "combined_below_0.3_pct,roi_below_0.3_pct,volume_ratios\n";
         for (const auto& r : rows)
             o << r.scene << ',' << r.mesher << ",\"" << r.config << "\"," << r.k << ',' << r.threads << ',' << r.tets << ','
-              << r.seconds << ',' << r.min_dihedral << ',' << r.combined_min << ',' << r.combined_mean << ',' << r.below
+              << r.seconds << ',' << r.min_dihedral << ',' << r.below_10deg << ',' << r.combined_min << ',' << r.combined_mean << ',' << r.below
               << ',' << (r.roi_below >= 0 ? std::to_string(r.roi_below) : "") << ',' << r.volumes << '\n';
         std::printf("wrote %s\n", csv.string().c_str());
     }

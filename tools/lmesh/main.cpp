@@ -29,7 +29,7 @@ struct Options {
     std::vector<std::string> tissue_sizes, tissue_distances;
     std::vector<double> roi, roi_box;
     double roi_size = 0;
-    bool no_perturb = false, no_exude = false;
+    bool no_perturb = false, no_exude = false, no_peel = false, no_repair = false;
     int smooth = 10;
     mesh::MeshParams params;
 };
@@ -89,6 +89,8 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
     p.roi.size = o.roi_size;
     p.perturb = !o.no_perturb;
     p.exude = !o.no_exude;
+    p.peel_slivers = !o.no_peel;
+    p.repair_manifold = !o.no_repair;
     p.progress = [&](const std::string& s) { progress.message(s); };
 
     const auto t0 = std::chrono::steady_clock::now();
@@ -259,6 +261,8 @@ int main(int argc, char** argv)
         ->capture_default_str();
     app.add_flag("--no-perturb", o.no_perturb, "Skip CGAL's sliver perturbation");
     app.add_flag("--no-exude", o.no_exude, "Skip CGAL's sliver exudation");
+    app.add_flag("--no-peel", o.no_peel, "Keep the flat tets on the outer boundary (see docs/algorithms/meshing.md)");
+    app.add_flag("--no-repair", o.no_repair, "Keep tissues that touch themselves along an edge or at a vertex");
     app.add_flag("--lloyd", p.lloyd, "Lloyd smoothing before perturb/exude (slow)");
     app.add_flag("--odt", p.odt, "ODT smoothing before perturb/exude (slow)");
     app.add_option("--threads", p.threads, "Threads (0 = all cores, CGAL parallel mode; 1 = serial, repeatable)")
