@@ -507,7 +507,10 @@ void run_mesh_3(const Domain& domain, const SizingField& field, const FacetSizeF
                             p.odt ? CGAL::parameters::odt(cp::time_limit = tl) : CGAL::parameters::no_odt(),
                             CGAL::parameters::no_perturb(), CGAL::parameters::no_exude());
         // The optimisers run here rather than inside refine_mesh_3 so that their outcome can be
-        // reported: in parallel mode the perturber often stops early ("cannot improve").
+        // reported, and repeated: the perturber often stops early ("cannot improve") with
+        // slivers left that a second pass removes (CGAL's liver: 351 tets below 10 degrees after
+        // one pass, 2 after two), so passes repeat while they raise the smallest angle, three
+        // at most.
         auto code_name = [](CGAL::Mesh_optimization_return_code c) {
             switch (c) {
             case CGAL::BOUND_REACHED: return "bound reached";
@@ -516,9 +519,6 @@ void run_mesh_3(const Domain& domain, const SizingField& field, const FacetSizeF
             default: return "stopped";
             }
         };
-        // The perturber often stops early ("cannot improve") with slivers left that a second
-        // pass removes (CGAL's liver: 351 tets below 10 degrees after one pass, 2 after two),
-        // so passes repeat while they raise the smallest angle, three at most.
         auto smallest_angle = [&] {
             double worst = 180;
             const auto& tr = c3t3.triangulation();
