@@ -3,6 +3,8 @@
 #include "lobe/mesh/tetrahedralize.h"
 
 #include "lobe/core/errors.h"
+#include "lobe/mesh/quality.h"
+#include "detail/manifold_repair.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Image_3.h>
@@ -13,6 +15,9 @@
 #include <CGAL/Random.h>
 #include <CGAL/make_mesh_3.h>
 #include <CGAL/refine_mesh_3.h>
+// after Mesh_3's own headers: they declare the worksharing structures the optimisers use
+#include <CGAL/exude_mesh_3.h>
+#include <CGAL/perturb_mesh_3.h>
 
 #ifdef CGAL_LINKED_WITH_TBB
 #include <tbb/global_control.h>
@@ -22,6 +27,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <memory>
@@ -40,6 +46,7 @@ using Point = K::Point_3;
 using core::Vec3;
 
 constexpr int kMaxTissueLabel = 9;
+const double kPi = std::acos(-1.0);
 
 // The label volume after tissue selection, speck removal and padding, in CGAL's frame:
 // point = (index - pad) * spacing, i.e. the original image's index space scaled to mm.
@@ -273,7 +280,6 @@ struct SizingField {
     std::array<double, 256> by_label{};
     double fallback = 1;
     std::shared_ptr<const RoiFrame> roi;
-    bool ignore_index = false; // facets: one size for every surface patch (see run_mesh_3)
 
     double label_size(int l) const
     {
@@ -284,9 +290,7 @@ struct SizingField {
     FT operator()(const Point& p, const int dim, const Index& index) const
     {
         double s = fallback;
-        if (ignore_index) {
-            // the position-only field of the surface facets
-        } else if (dim == 3) {
+        if (dim == 3) {
             if (const int* sub = boost::get<int>(&index))
                 s = label_size(*sub);
         } else if (dim == 2) {
@@ -296,6 +300,61 @@ struct SizingField {
         if (roi && roi->kind != RegionOfInterest::Kind::None)
             s = std::min(s, roi->size + roi->slope * roi->distance({p.x(), p.y(), p.z()}));
         return s;
+    }
+};
+
+// Position-only fields of the surface facets (why position only: run_mesh_3). A boundary point
+// lies between voxel centres of different labels, so the eight voxels around it hold the
+// tissues it separates; the facet size and the distance bound are the smallest of theirs.
+struct BoundaryMaps {
+    const core::LabelImage3D* labels = nullptr; // padded (Prepared outlives the meshing)
+    int pad = 0;
+    std::array<double, 3> spacing{};
+    std::array<double, 256> size{}, distance{}; // per label [mm]
+
+    template <class F>
+    void around(const Point& p, F&& f) const
+    {
+        const double u[3] = {p.x() / spacing[0] + pad, p.y() / spacing[1] + pad, p.z() / spacing[2] + pad};
+        const int i0 = static_cast<int>(std::floor(u[0])), j0 = static_cast<int>(std::floor(u[1])),
+                  k0 = static_cast<int>(std::floor(u[2]));
+        for (int dk = 0; dk <= 1; ++dk)
+            for (int dj = 0; dj <= 1; ++dj)
+                for (int di = 0; di <= 1; ++di)
+                    if (labels->contains(i0 + di, j0 + dj, k0 + dk))
+                        if (const auto l = labels->at(i0 + di, j0 + dj, k0 + dk); l != 0)
+                            f(static_cast<std::size_t>(l));
+    }
+};
+
+struct FacetSizeField {
+    using FT = K::FT;
+    std::shared_ptr<const BoundaryMaps> maps;
+    std::shared_ptr<const RoiFrame> roi;
+    double fallback = 1; // the smallest tissue size, should no tissue voxel lie around
+
+    FT operator()(const Point& p, const int, const Domain::Index&) const
+    {
+        double s = std::numeric_limits<double>::infinity();
+        maps->around(p, [&](std::size_t l) { s = std::min(s, maps->size[l]); });
+        if (!std::isfinite(s))
+            s = fallback;
+        if (roi && roi->kind != RegionOfInterest::Kind::None)
+            s = std::min(s, roi->size + roi->slope * roi->distance({p.x(), p.y(), p.z()}));
+        return s;
+    }
+};
+
+struct FacetDistanceField {
+    using FT = K::FT;
+    std::shared_ptr<const BoundaryMaps> maps;
+    double fallback = 1; // the smallest tissue tolerance, should no tissue voxel lie around
+
+    FT operator()(const Point& p, const int, const Domain::Index&) const
+    {
+        double d = std::numeric_limits<double>::infinity();
+        maps->around(p, [&](std::size_t l) { d = std::min(d, maps->distance[l]); });
+        return std::isfinite(d) ? d : fallback;
     }
 };
 
@@ -331,31 +390,49 @@ void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr,
     auto frame = [&](int i, int j, int k) {
         return Point((i - pr.pad) * g.spacing[0], (j - pr.pad) * g.spacing[1], (k - pr.pad) * g.spacing[2]);
     };
-    // Collect boundary voxels per component, keeping every n-th so that the points spread out.
-    std::vector<std::vector<std::pair<std::size_t, int>>> boundary(pr.comps.size());
-    std::vector<std::int64_t> seen(pr.comps.size(), 0);
-    for (std::size_t s = 0; s < img.data.size(); ++s) {
-        const int c = pr.component[s];
-        if (c < 0)
-            continue;
-        const int i = static_cast<int>(s % static_cast<std::size_t>(nx));
-        const int j = static_cast<int>((s / static_cast<std::size_t>(nx)) % static_cast<std::size_t>(ny));
-        const int k = static_cast<int>(s / (static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny)));
+    // Boundary voxels per component, and each component's centroid; then every n-th boundary
+    // voxel so that the points spread over the whole component.
+    auto boundary_face = [&](std::size_t s, int i, int j, int k) {
         const int nb[6][3] = {{i - 1, j, k}, {i + 1, j, k}, {i, j - 1, k}, {i, j + 1, k}, {i, j, k - 1}, {i, j, k + 1}};
         for (int d = 0; d < 6; ++d) {
             const auto& q = nb[d];
-            const bool other = !img.contains(q[0], q[1], q[2]) || img.at(q[0], q[1], q[2]) != img.data[s];
-            if (!other)
-                continue;
-            // Reservoir-free thinning: keep the first points and then one in every 2^m.
-            const auto cnt = seen[static_cast<std::size_t>(c)]++;
-            auto& b = boundary[static_cast<std::size_t>(c)];
-            const auto stride = std::max<std::int64_t>(1, pr.comps[static_cast<std::size_t>(c)].voxels / 16);
-            if (static_cast<int>(b.size()) < per_component && cnt % stride == 0)
-                b.emplace_back(s, d);
-            break;
+            if (!img.contains(q[0], q[1], q[2]) || img.at(q[0], q[1], q[2]) != img.data[s])
+                return d;
         }
-    }
+        return -1;
+    };
+    std::vector<std::int64_t> count(pr.comps.size(), 0);
+    std::vector<Vec3> centroid(pr.comps.size());
+    for (int k = 0; k < img.size[2]; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const std::size_t s = img.index(i, j, k);
+                const int c = pr.component[s];
+                if (c < 0)
+                    continue;
+                const auto cu = static_cast<std::size_t>(c);
+                centroid[cu] += Vec3{double(i), double(j), double(k)};
+                if (boundary_face(s, i, j, k) >= 0)
+                    ++count[cu];
+            }
+    std::vector<std::vector<std::pair<std::size_t, int>>> boundary(pr.comps.size());
+    std::vector<std::int64_t> seen(pr.comps.size(), 0);
+    for (int k = 0; k < img.size[2]; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const std::size_t s = img.index(i, j, k);
+                const int c = pr.component[s];
+                if (c < 0)
+                    continue;
+                const int d = boundary_face(s, i, j, k);
+                if (d < 0)
+                    continue;
+                const auto cu = static_cast<std::size_t>(c);
+                const auto stride = std::max<std::int64_t>(1, count[cu] / per_component);
+                auto& b = boundary[cu];
+                if (static_cast<int>(b.size()) < per_component && seen[cu]++ % stride == 0)
+                    b.emplace_back(s, d);
+            }
     auto cwp = c3t3.triangulation().geom_traits().construct_weighted_point_3_object();
     auto intersect = domain.construct_intersection_object();
     for (std::size_t c = 0; c < boundary.size(); ++c)
@@ -375,27 +452,46 @@ void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr,
                 c3t3.set_index(v, std::get<1>(x));
             }
         }
+    // One interior point per component, at its centroid's voxel when that voxel lies inside
+    // the component with all its face neighbours. Points on a sphere alone are cospherical:
+    // their Delaunay cells all share one circumcentre, and when it lies outside the tissue (the
+    // 4/5 sphere's centre is on its cut) no dual edge crosses the boundary, CGAL finds no
+    // facet to start from and meshes nothing. That happened to the 4/5 sphere test when the
+    // boundary points were the first few of the scan; the even spread above fixed it, and the
+    // interior point keeps it from depending on where the spread falls.
+    for (std::size_t c = 0; c < pr.comps.size(); ++c) {
+        const Vec3 m = centroid[c] / static_cast<double>(pr.comps[c].voxels);
+        const int i = static_cast<int>(std::lround(m.x)), j = static_cast<int>(std::lround(m.y)),
+                  k = static_cast<int>(std::lround(m.z));
+        if (!img.contains(i, j, k) || pr.component[img.index(i, j, k)] != static_cast<int>(c) ||
+            boundary_face(img.index(i, j, k), i, j, k) >= 0)
+            continue;
+        auto v = c3t3.triangulation().insert(cwp(frame(i, j, k)));
+        if (v != typename C3t3::Triangulation::Vertex_handle()) {
+            c3t3.set_dimension(v, 3);
+            c3t3.set_index(v, typename Domain::Index(static_cast<int>(pr.comps[c].label)));
+        }
+    }
 }
 
 // CGAL's refinement and optimisation, then the complex's cells as a TetMesh in physical space.
 // Serial (Sequential_tag) runs repeat exactly; Parallel_tag runs use TBB and vary run to run.
 template <class Tag>
-void run_mesh_3(const Domain& domain, const SizingField& field, double facet_distance, const Prepared& pr,
+void run_mesh_3(const Domain& domain, const SizingField& field, const FacetSizeField& facet_size,
+                const FacetDistanceField& facet_distance, const Prepared& pr,
                 const core::ImageGeometry& g, const MeshParams& p, const std::function<void(const std::string&)>& say,
-                core::TetMesh& out)
+                core::TetMesh& out, MeshResult::ManifoldRepair& repair, MeshResult::Peeled& peeled,
+                std::string& optimisation)
 {
     using Tr = typename CGAL::Mesh_triangulation_3<Domain, CGAL::Default, Tag>::type;
     using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
     using Criteria = CGAL::Mesh_criteria_3<Tr>;
     namespace cp = CGAL::parameters;
-    // Surface facets: one size for every patch (the smallest tissue size, refined towards the
-    // ROI), because a facet size looked up per surface patch made CGAL 5.5's facet refinement
-    // run without end on the phantom (docs/algorithms/meshing.md); tets get per-tissue sizes.
-    SizingField facet_field = field;
-    facet_field.ignore_index = true;
-    for (const auto& c : pr.comps)
-        facet_field.fallback = std::min(facet_field.fallback, field.label_size(c.label));
-    Criteria criteria(cp::facet_angle = p.facet_angle, cp::facet_size = facet_field, cp::facet_distance = facet_distance,
+    // Surface facets get fields of the position only: a facet size looked up per surface patch
+    // index (the smaller of the two tissues' sizes) made CGAL 5.5's facet refinement run without
+    // end on the phantom (docs/algorithms/meshing.md), while the same sizes found from the
+    // voxels around the point finish; tets get per-tissue sizes by subdomain.
+    Criteria criteria(cp::facet_angle = p.facet_angle, cp::facet_size = facet_size, cp::facet_distance = facet_distance,
                       cp::cell_radius_edge_ratio = p.radius_edge_ratio, cp::cell_size = field);
 
     C3t3 c3t3;
@@ -409,33 +505,138 @@ void run_mesh_3(const Domain& domain, const SizingField& field, double facet_dis
         CGAL::refine_mesh_3(c3t3, domain, criteria,
                             p.lloyd ? CGAL::parameters::lloyd(cp::time_limit = tl) : CGAL::parameters::no_lloyd(),
                             p.odt ? CGAL::parameters::odt(cp::time_limit = tl) : CGAL::parameters::no_odt(),
-                            p.perturb ? CGAL::parameters::perturb(cp::time_limit = tl, cp::sliver_bound = p.sliver_bound)
-                                      : CGAL::parameters::no_perturb(),
-                            p.exude ? CGAL::parameters::exude(cp::time_limit = tl, cp::sliver_bound = p.sliver_bound)
-                                    : CGAL::parameters::no_exude());
+                            CGAL::parameters::no_perturb(), CGAL::parameters::no_exude());
+        // The optimisers run here rather than inside refine_mesh_3 so that their outcome can be
+        // reported, and repeated: the perturber often stops early ("cannot improve") with
+        // slivers left that a second pass removes (CGAL's liver: 351 tets below 10 degrees after
+        // one pass, 2 after two), so passes repeat while they raise the smallest angle, three
+        // at most.
+        auto code_name = [](CGAL::Mesh_optimization_return_code c) {
+            switch (c) {
+            case CGAL::BOUND_REACHED: return "bound reached";
+            case CGAL::TIME_LIMIT_REACHED: return "time limit reached";
+            case CGAL::CANT_IMPROVE_ANYMORE: return "cannot improve";
+            default: return "stopped";
+            }
+        };
+        auto smallest_angle = [&] {
+            double worst = 180;
+            const auto& tr = c3t3.triangulation();
+            for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c) {
+                std::array<Vec3, 4> q;
+                for (int i = 0; i < 4; ++i) {
+                    const auto& pt = tr.point(c, i).point();
+                    q[static_cast<std::size_t>(i)] = {pt.x(), pt.y(), pt.z()};
+                }
+                const auto a = dihedral_angles(q[0], q[1], q[2], q[3]);
+                worst = std::min(worst, *std::min_element(a.begin(), a.end()) * 180 / kPi);
+            }
+            return worst;
+        };
+        double before = -1;
+        for (int pass = 0; pass < 3 && (p.perturb || p.exude); ++pass) {
+            if (p.perturb) {
+                say("perturbing slivers");
+                const auto c = CGAL::perturb_mesh_3(c3t3, domain, cp::time_limit = tl, cp::sliver_bound = p.sliver_bound);
+                optimisation += std::string(optimisation.empty() ? "" : ", ") + "perturb: " + code_name(c);
+            }
+            if (p.exude) {
+                say("exuding slivers");
+                const auto c = CGAL::exude_mesh_3(c3t3, cp::time_limit = tl, cp::sliver_bound = p.sliver_bound);
+                optimisation += std::string(optimisation.empty() ? "" : ", ") + "exude: " + code_name(c);
+            }
+            const double after = smallest_angle();
+            char buf[64];
+            std::snprintf(buf, sizeof buf, " (smallest angle %.2f deg)", after);
+            optimisation += buf;
+            if (after >= p.sliver_bound || after <= before)
+                break;
+            before = after;
+        }
     } catch (const std::exception& e) {
         throw core::SolverError(std::string("mesh_labels: CGAL Mesh_3 failed: ") + e.what());
     }
 
     say("extracting the mesh");
-    const bool flip = det3(g) < 0;
-    std::unordered_map<typename Tr::Vertex_handle, std::int32_t> index;
-    for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c) {
-        std::array<std::int32_t, 4> t{};
+    // Every finite cell of the triangulation, labelled (0 outside the domain), with its
+    // neighbours: the manifold repair needs the cells outside the domain too, to tell whether
+    // two outside regions around a vertex are one.
+    const auto& tr = c3t3.triangulation();
+    detail::LabelledCells cells;
+    std::unordered_map<typename Tr::Vertex_handle, std::int32_t> vindex;
+    std::unordered_map<typename Tr::Cell_handle, std::int32_t> cindex;
+    for (auto c : tr.finite_cell_handles())
+        cindex.emplace(c, static_cast<std::int32_t>(cindex.size()));
+    cells.cells.resize(cindex.size());
+    cells.neighbours.resize(cindex.size());
+    cells.labels.resize(cindex.size());
+    cells.fixed.resize(cindex.size());
+    std::size_t cu = 0;
+    for (auto c : tr.finite_cell_handles()) { // the same order as cindex: runs repeat exactly
         for (int i = 0; i < 4; ++i) {
             const auto v = c->vertex(i);
-            auto it = index.find(v);
-            if (it == index.end()) {
-                const auto& q = c3t3.triangulation().point(v).point();
-                it = index.emplace(v, static_cast<std::int32_t>(out.vertices.size())).first;
-                out.vertices.push_back(to_physical(g, Vec3{q.x(), q.y(), q.z()}));
+            auto it = vindex.find(v);
+            if (it == vindex.end()) {
+                const auto& q = tr.point(v).point();
+                it = vindex.emplace(v, static_cast<std::int32_t>(cells.vertices.size())).first;
+                cells.vertices.push_back(Vec3{q.x(), q.y(), q.z()});
             }
-            t[static_cast<std::size_t>(i)] = it->second;
+            cells.cells[cu][static_cast<std::size_t>(i)] = it->second;
+            const auto n = c->neighbor(i);
+            const auto nt = cindex.find(n);
+            cells.neighbours[cu][static_cast<std::size_t>(i)] = nt == cindex.end() ? -1 : nt->second;
+        }
+        const bool in = c3t3.is_in_complex(c);
+        cells.labels[cu] = in ? static_cast<int>(c3t3.subdomain_index(c)) : 0;
+        cells.fixed[cu] = in ? 0 : 1;
+        ++cu;
+    }
+    auto repair_once = [&] {
+        const auto s = detail::repair_manifold(cells);
+        if (repair.tets_relabelled == 0 && repair.bad_vertices_before == 0)
+            repair.bad_vertices_before = s.bad_vertices_before;
+        repair.bad_vertices_after = s.bad_vertices_after;
+        repair.tets_relabelled += s.relabelled;
+        repair.tets_removed += s.removed;
+        repair.volume += s.volume;
+    };
+    if (p.repair_manifold) {
+        say("repairing non-manifold tissue boundaries");
+        repair_once();
+    }
+    if (p.peel_slivers) {
+        // Flat tets on the outer boundary, which the exuder cannot remove (their vertices stay
+        // on the surface); removing one can make a vertex non-manifold, so repair after each
+        // round (the peeled tets stay outside).
+        say("peeling boundary slivers");
+        for (int round = 0; round < 4; ++round) {
+            const auto s = detail::peel_boundary_slivers(cells, p.sliver_bound);
+            peeled.tets += s.tets;
+            peeled.volume += s.volume;
+            if (s.tets == 0)
+                break;
+            if (p.repair_manifold)
+                repair_once();
+        }
+    }
+    const bool flip = det3(g) < 0;
+    std::vector<std::int32_t> index(cells.vertices.size(), -1);
+    for (std::size_t c = 0; c < cells.cells.size(); ++c) {
+        if (cells.labels[c] == 0)
+            continue;
+        std::array<std::int32_t, 4> t{};
+        for (std::size_t i = 0; i < 4; ++i) {
+            const auto v = static_cast<std::size_t>(cells.cells[c][i]);
+            if (index[v] < 0) {
+                index[v] = static_cast<std::int32_t>(out.vertices.size());
+                out.vertices.push_back(to_physical(g, cells.vertices[v]));
+            }
+            t[i] = index[v];
         }
         if (flip)
             std::swap(t[0], t[1]);
         out.tets.push_back(t);
-        out.tet_labels.push_back(static_cast<std::int32_t>(c3t3.subdomain_index(c)));
+        out.tet_labels.push_back(cells.labels[c]);
     }
 }
 
@@ -473,12 +674,13 @@ MeshResult mesh_labels(const core::LabelImage3D& labels, const MeshParams& p)
     if (!(p.facet_angle > 0 && p.facet_angle <= 30))
         throw core::InvalidInputError("mesh_labels: facet_angle must be in (0, 30] degrees, got " +
                                       std::to_string(p.facet_angle));
-    if (!(p.curvature_factor > 0) || !(p.grading > 1))
-        throw core::InvalidInputError("mesh_labels: curvature_factor must be > 0 and grading > 1");
+    if (!(p.curvature_factor > 0) || !(p.grading > 1) || !(p.distance_per_size > 0))
+        throw core::InvalidInputError("mesh_labels: curvature_factor and distance_per_size must be > 0 and grading > 1");
     for (const auto& t : p.tissue_sizes)
-        if (!(t.size > 0))
-            throw core::InvalidInputError("mesh_labels: the size of tissue " + std::to_string(t.label) +
-                                          " must be > 0 mm");
+        if (!(t.size >= 0) || !(t.facet_distance >= 0) || !std::isfinite(t.size) || !std::isfinite(t.facet_distance) ||
+            (t.size == 0 && t.facet_distance == 0))
+            throw core::InvalidInputError("mesh_labels: the size and boundary tolerance of tissue " +
+                                          std::to_string(t.label) + " must be >= 0 mm, one of them > 0");
     if (p.roi.kind == RegionOfInterest::Kind::Spheres && (p.roi.centres.empty() || !(p.roi.radius >= 0)))
         throw core::InvalidInputError("mesh_labels: a spherical region of interest needs centres and a radius >= 0");
     if (p.roi.kind == RegionOfInterest::Kind::Box)
@@ -556,21 +758,63 @@ MeshResult mesh_labels(const core::LabelImage3D& labels, const MeshParams& p)
     // Boundary size from the curvature factor: a chord of length s on a circle of radius R
     // deviates s^2 / (8R); bounding the deviation by cf^2 R_min / 8 keeps s <= cf R for R >= R_min.
     const double r_min = p.min_feature_radius > 0 ? p.min_feature_radius : std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
-    const double facet_distance = std::max(p.curvature_factor * p.curvature_factor * r_min / 8, 0.05 * min_spacing);
+    const double cf_distance = std::max(p.curvature_factor * p.curvature_factor * r_min / 8, 0.05 * min_spacing);
+    // Per tissue: the facet size is its element size; the distance bound is the curvature
+    // factor's, or distance_per_size x its size when smaller (a tissue meshed finer than the
+    // rest is thin: a bound the size of a vessel's radius cuts a fifth of its volume), or its own.
+    auto maps = std::make_shared<BoundaryMaps>();
+    maps->labels = &pr.labels;
+    maps->pad = pr.pad;
+    maps->spacing = g.spacing;
+    for (int l = 1; l < 256; ++l) {
+        const auto lu = static_cast<std::size_t>(l);
+        maps->size[lu] = field.label_size(l);
+        maps->distance[lu] = std::min(cf_distance, p.distance_per_size * maps->size[lu]);
+        for (const auto& t : p.tissue_sizes)
+            if (t.label == l && t.facet_distance > 0)
+                maps->distance[lu] = t.facet_distance;
+    }
+    FacetSizeField facet_size;
+    facet_size.maps = maps;
+    facet_size.roi = field.roi;
+    facet_size.fallback = size;
+    FacetDistanceField facet_distance;
+    facet_distance.maps = maps;
+    facet_distance.fallback = cf_distance;
+    for (const auto& c : pr.comps) {
+        facet_size.fallback = std::min(facet_size.fallback, maps->size[static_cast<std::size_t>(c.label)]);
+        facet_distance.fallback = std::min(facet_distance.fallback, maps->distance[static_cast<std::size_t>(c.label)]);
+    }
+    for (auto& t : result.tissues) {
+        t.size = maps->size[static_cast<std::size_t>(t.label)];
+        t.facet_distance = maps->distance[static_cast<std::size_t>(t.label)];
+    }
 #ifdef CGAL_LINKED_WITH_TBB
     const int threads = p.threads > 0 ? p.threads : static_cast<int>(tbb::info::default_concurrency());
     result.threads = threads;
     say("meshing on " + std::to_string(threads) + " thread(s), " + std::to_string(pr.comps.size()) + " components");
     if (threads > 1) {
         tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
-        run_mesh_3<CGAL::Parallel_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
+        run_mesh_3<CGAL::Parallel_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
+                                          result.manifold_repair, result.peeled, result.optimisation);
     } else {
-        run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
+        run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
+                                          result.manifold_repair, result.peeled, result.optimisation);
     }
 #else
     result.threads = 1;
-    run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_distance, pr, g, p, say, result.mesh);
+    run_mesh_3<CGAL::Sequential_tag>(domain, field, facet_size, facet_distance, pr, g, p, say, result.mesh,
+                                          result.manifold_repair, result.peeled, result.optimisation);
 #endif
+    if (const auto& r = result.manifold_repair; r.bad_vertices_before > 0) {
+        char buf[300];
+        std::snprintf(buf, sizeof buf,
+                      "non-manifold tissue boundaries at %lld vertices: %lld tets relabelled (%lld of them removed), "
+                      "%.1f mm^3; %lld vertices left",
+                      static_cast<long long>(r.bad_vertices_before), static_cast<long long>(r.tets_relabelled),
+                      static_cast<long long>(r.tets_removed), r.volume, static_cast<long long>(r.bad_vertices_after));
+        result.warnings.push_back(buf);
+    }
     auto& out = result.mesh;
     // CGAL cells are positively oriented; drop any tet that rounding flattened (none expected).
     {

@@ -2,7 +2,9 @@
 
 #include "lobe/core/errors.h"
 #include "lobe/mesh/quality.h"
+#include "lobe/mesh/surface.h"
 #include "mesh/label_shapes.h"
+#include "mesh/surface_distance.h"
 
 #include <gtest/gtest.h>
 
@@ -300,4 +302,212 @@ TEST(MeshLabels, RegionOfInterestIsFinerInsideAndGradedOutside)
     std::printf("ROI: mean edge inside %.2f mm (%d tets), beyond 20 mm %.2f mm (%d tets), total %zu\n",
                 in_sum / in_n, in_n, out_sum / out_n, out_n, m.tets.size());
     EXPECT_LT(in_sum / in_n, 0.6 * (out_sum / out_n));
+}
+
+TEST(MeshLabels, PiecesTouchingAlongAnEdgeGiveManifoldSurfaces)
+{
+    // Two 9-voxel blocks of one label that touch only along a voxel edge (the line x = y = 11.5):
+    // the phantom's defect in small (two sides of its fissure, or liver around a thin vessel,
+    // meeting along an edge). CGAL fills the contact with thin tets, so without the repair
+    // the tissue surface and the outer one are non-manifold along that line; with it, every
+    // surface must be closed, manifold, oriented and free of self-intersections, the repair
+    // reported, and the volume it moved small: the contact is a line, so only slivers along it
+    // change (measured 2.1 mm^3; bound 1% of the 2916 mm^3 of label).
+    auto img = test::empty_labels(24);
+    test::paint_box(img, {3, 3, 3}, {11, 11, 20}, 1);
+    test::paint_box(img, {12, 12, 3}, {20, 20, 20}, 1);
+    mesh::MeshParams p;
+    p.size = 3;
+    p.threads = 1;
+    auto defects = [](const core::TetMesh& m) {
+        std::int64_t n = 0;
+        for (const auto& s : mesh::tissue_surfaces(m)) {
+            const auto c = mesh::check_surface(s.surface);
+            n += c.non_manifold_edges + c.non_manifold_vertices;
+        }
+        return n;
+    };
+    p.repair_manifold = false;
+    const auto raw = mesh::mesh_labels(img, p);
+    const auto raw_defects = defects(raw.mesh);
+    std::printf("without repair: %lld non-manifold edges and vertices\n", static_cast<long long>(raw_defects));
+    EXPECT_GT(raw_defects, 0); // the defect is reproduced: the check below means something
+
+    p.repair_manifold = true;
+    const auto res = mesh::mesh_labels(img, p);
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    const auto& r = res.manifold_repair;
+    std::printf("repair: %lld bad vertices -> %lld, %lld tets relabelled (%lld removed), %.2f mm^3\n",
+                static_cast<long long>(r.bad_vertices_before), static_cast<long long>(r.bad_vertices_after),
+                static_cast<long long>(r.tets_relabelled), static_cast<long long>(r.tets_removed), r.volume);
+    EXPECT_GT(r.bad_vertices_before, 0);
+    EXPECT_EQ(r.bad_vertices_after, 0);
+    for (const auto& s : mesh::tissue_surfaces(res.mesh)) {
+        const auto c = mesh::check_surface(s.surface);
+        EXPECT_TRUE(c.ok()) << "label " << s.label << ": " << mesh::describe(c);
+    }
+    const double label_volume = 2 * 9.0 * 9 * 18;
+    EXPECT_LT(r.volume, 0.01 * label_volume);
+    bool reported = false;
+    for (const auto& w : res.warnings)
+        reported = reported || w.find("non-manifold") != std::string::npos;
+    EXPECT_TRUE(reported);
+    EXPECT_NEAR(res.tissues[0].mesh_volume, label_volume, 0.1 * label_volume);
+}
+
+namespace {
+
+// Quality and accuracy of a one-tissue mesh of an analytic shape, printed for the record.
+struct ShapeCheck {
+    double volume = 0, min_dihedral = 0, max_radius_edge = 0, below_03 = 0;
+    test::HausdorffResult hausdorff;
+};
+
+ShapeCheck check_shape(const char* name, const mesh::MeshResult& res, const core::LabelImage3D& img, double exact,
+                       double secs)
+{
+    const auto& m = res.mesh;
+    ShapeCheck c;
+    c.volume = label_mesh_volume(m, 1);
+    const auto q = mesh::evaluate_quality(m);
+    c.min_dihedral = q.all.min_dihedral_deg;
+    c.max_radius_edge = q.all.max_radius_edge_ratio;
+    const auto& comb = q.all.measures[static_cast<int>(mesh::Measure::Combined)];
+    c.below_03 = double(comb.bands[0]) / double(comb.count);
+    c.hausdorff = test::hausdorff_to_labels(m, img, 2 * img.spacing[2]);
+    std::printf("%s: %zu tets in %.2f s, volume %.1f mm^3 (exact %.1f, %+.2f%%; voxels %.1f), Hausdorff to the label "
+                "surface %.3f / %.3f mm, dihedral >= %.1f deg, max B %.2f, combined < 0.3: %.1f%%\n",
+                name, m.tets.size(), secs, c.volume, exact, 100 * (c.volume / exact - 1), res.tissues[0].label_volume,
+                c.hausdorff.mesh_to_labels, c.hausdorff.labels_to_mesh, c.min_dihedral, c.max_radius_edge,
+                100 * c.below_03);
+    return c;
+}
+
+} // namespace
+
+TEST(MeshLabels, FourFifthsSphere)
+{
+    // The thesis's 4/5 sphere (Fig 6.16-6.18): a ball of radius 10 mm with a fifth removed, the
+    // wedge of azimuth [0, 72) degrees about the vertical axis through its centre; exact volume
+    // 4/5 x 4/3 pi r^3 = 3351 mm^3. It has what the plain sphere lacks: two flat faces, a concave
+    // edge (the axis) and two convex half-circle rims. 1 mm voxels, the centre between voxel
+    // centres.
+    const double r = 10;
+    const Vec3 c{13.5, 13.5, 13.5};
+    auto img = test::empty_labels(28);
+    for (int k = 0; k < 28; ++k)
+        for (int j = 0; j < 28; ++j)
+            for (int i = 0; i < 28; ++i) {
+                const Vec3 d = Vec3{double(i), double(j), double(k)} - c;
+                const double phi = std::atan2(d.y, d.x) * 180 / kPi;
+                if (core::norm(d) <= r && !(phi >= 0 && phi < 72))
+                    img.at(i, j, k) = 1;
+            }
+    mesh::MeshParams p;
+    p.size = 2.5;
+    p.threads = 1;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto res = mesh::mesh_labels(img, p);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    const double exact = 0.8 * 4.0 / 3 * kPi * r * r * r;
+    const auto s = check_shape("4/5 sphere", res, img, exact, secs);
+    // Volume (measured -0.7%): the voxels hold the shape to 0.2%; CGAL does not keep sharp
+    // edges on an image domain, so it cuts the convex rims and fills the concave axis by up to
+    // a voxel; the plain sphere's 4% covers both.
+    EXPECT_NEAR(s.volume, exact, 0.04 * exact);
+    // Boundary within a voxel of the label surface, both ways (the Hausdorff bound;
+    // measured 0.37 mm from the mesh, 0.80 mm from the label surface, at the cut rims).
+    EXPECT_LT(s.hausdorff.max(), 1.0);
+    // Quality: perturb and exude aim at 12 degrees and reach it here (serial runs repeat
+    // exactly); the bound is 10. About 16% of the tets rate below 0.3 on the combined
+    // measure (the phantom's 13%): bounded at 20%, the combined measure is not optimised.
+    EXPECT_GT(s.min_dihedral, 10.0);
+    EXPECT_LT(s.below_03, 0.2);
+}
+
+TEST(MeshLabels, ParaboloidIntrusionIntoACuboid)
+{
+    // The thesis's paraboloid intrusion pressed into a cuboid (Fig 6.19): a 24 x 24 x 15 mm
+    // box (1 x 1 x 1.5 mm voxels, anisotropic on purpose) whose top face is pushed in by a
+    // paraboloid of rim radius R = 8 mm and depth d = 7.5 mm, z = top - d (1 - rho^2 / R^2).
+    // Exact volume: box - pi R^2 d / 2 = 8640 - 754 = 7886 mm^3.
+    core::ImageGeometry g;
+    g.size = {30, 30, 14};
+    g.spacing = {1.0, 1.0, 1.5};
+    core::LabelImage3D img(g, 0);
+    const Vec3 lo{2.5, 2.5, 1.5 * 1.5}, hi{26.5, 26.5, 1.5 * 11.5};
+    const double R = 8, depth = 7.5, xc = 14.5, yc = 14.5;
+    for (int k = 0; k < g.size[2]; ++k)
+        for (int j = 0; j < g.size[1]; ++j)
+            for (int i = 0; i < g.size[0]; ++i) {
+                const Vec3 q = img.index_to_physical(i, j, k);
+                if (q.x < lo.x || q.x > hi.x || q.y < lo.y || q.y > hi.y || q.z < lo.z || q.z > hi.z)
+                    continue;
+                const double rho2 = (q.x - xc) * (q.x - xc) + (q.y - yc) * (q.y - yc);
+                if (rho2 < R * R && q.z > hi.z - depth * (1 - rho2 / (R * R)))
+                    continue;
+                img.at(i, j, k) = 1;
+            }
+    mesh::MeshParams p;
+    p.size = 2.5;
+    p.threads = 1;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto res = mesh::mesh_labels(img, p);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ASSERT_EQ(core::mesh_problem(res.mesh), "");
+    const double exact = (hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z) - kPi * R * R * depth / 2;
+    const auto s = check_shape("paraboloid in cuboid", res, img, exact, secs);
+    // The same bounds as the 4/5 sphere, for the same reasons; the Hausdorff bound is the
+    // smallest spacing (measured 0.47 / 0.90 mm: the box's edges and corners are chamfered).
+    EXPECT_NEAR(s.volume, exact, 0.04 * exact); // measured -0.8%
+    EXPECT_LT(s.hausdorff.max(), 1.0);
+    EXPECT_GT(s.min_dihedral, 10.0);
+    EXPECT_LT(s.below_03, 0.2);
+}
+
+TEST(MeshLabels, ThinTissueKeepsItsVolumeWithItsOwnBoundaryTolerance)
+{
+    // A vessel-like tube (label 2, radius 2.5 mm along x) through a block of liver (label 1) on
+    // thick slices (1 x 1 x 2 mm), sized as lmesh is asked for the phantom (liver 8 mm, vessel
+    // 2.5 mm, curvature factor 2). The boundary facets are chords: a tube loses about
+    // (4/3) delta / R of its cross-section to a tolerance delta, so the curvature factor's
+    // 1 mm (cf^2 x 2 mm / 8, 40% of the radius) cuts it short, the default 0.2 x its size
+    // (0.5 mm) less, and 0.2 mm (8% of the radius) keeps it within 10% of its label volume (the
+    // issue's bound; measured 0.69, 0.82, 0.91: the 2 mm slices cost a few percent more than
+    // the chords) while the block stays within 3%.
+    core::ImageGeometry g;
+    g.size = {40, 28, 14};
+    g.spacing = {1.0, 1.0, 2.0};
+    core::LabelImage3D img(g, 0);
+    for (int k = 1; k < 13; ++k)
+        for (int j = 1; j < 27; ++j)
+            for (int i = 1; i < 39; ++i) {
+                const Vec3 q = img.index_to_physical(i, j, k);
+                const double dy = q.y - 13.5, dz = q.z - 13.0;
+                img.at(i, j, k) = dy * dy + dz * dz <= 2.5 * 2.5 ? 2 : 1;
+            }
+    mesh::MeshParams p;
+    p.size = 8;
+    p.curvature_factor = 2;
+    p.threads = 1;
+    auto run = [&](double per_size, double own) {
+        p.distance_per_size = per_size;
+        p.tissue_sizes = {{2, 2.5, own}};
+        const auto r = mesh::mesh_labels(img, p);
+        EXPECT_EQ(core::mesh_problem(r.mesh), "");
+        std::printf("tube tolerance %.2f mm: %zu tets, tube %.3f, block %.3f of the label volume\n",
+                    r.tissues[1].facet_distance, r.mesh.tets.size(), r.tissues[1].mesh_volume / r.tissues[1].label_volume,
+                    r.tissues[0].mesh_volume / r.tissues[0].label_volume);
+        return r;
+    };
+    const auto coarse = run(1, 0), by_size = run(0.2, 0), fine = run(0.2, 0.2);
+    EXPECT_NEAR(coarse.tissues[1].facet_distance, 1.0, 1e-12);
+    EXPECT_NEAR(by_size.tissues[1].facet_distance, 0.5, 1e-12);
+    EXPECT_NEAR(fine.tissues[1].facet_distance, 0.2, 1e-12);
+    auto ratio = [](const mesh::MeshResult& r, std::size_t t) { return r.tissues[t].mesh_volume / r.tissues[t].label_volume; };
+    EXPECT_LT(ratio(coarse, 1), ratio(by_size, 1));
+    EXPECT_LT(ratio(by_size, 1), ratio(fine, 1));
+    EXPECT_NEAR(ratio(fine, 1), 1.0, 0.10);
+    EXPECT_NEAR(ratio(fine, 0), 1.0, 0.03);
 }

@@ -105,6 +105,12 @@ TEST(Lmesh, MeshesALabelImageAndWritesEverything)
         EXPECT_EQ(t["components_meshed"], t["components"]);
     }
     EXPECT_EQ(j["mesh"]["tets"].get<std::size_t>(), data.mesh.tets.size());
+    // Every surface closed, manifold, oriented and free of self-intersections (the manifold
+    // repair leaves no bad vertex).
+    ASSERT_EQ(j["surfaces"].size(), 3u);
+    for (const auto& s : j["surfaces"])
+        EXPECT_TRUE(s["ok"].get<bool>()) << s["name"];
+    EXPECT_EQ(j["manifold_repair"]["bad_vertices_after"].get<int>(), 0);
     EXPECT_TRUE(fs::exists(dir / "report.txt"));
     for (const char* png : {"cut-axial-tissue.png", "cut-coronal-quality.png", "quality-histogram.png"})
         EXPECT_GT(fs::file_size(dir / "png" / png), 1000u) << png;

@@ -12,6 +12,7 @@
 #include "lobe/mesh/surface.h"
 #include "lobe/mesh/tetrahedralize.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -25,16 +26,16 @@ struct Options {
     fs::path input, output, png_dir, report, export_dir;
     std::string labels_name, mesh_name = "liver", export_format = "stl";
     std::vector<int> tissues;
-    std::vector<std::string> tissue_sizes;
+    std::vector<std::string> tissue_sizes, tissue_distances;
     std::vector<double> roi, roi_box;
     double roi_size = 0;
-    bool no_perturb = false, no_exude = false;
+    bool no_perturb = false, no_exude = false, no_peel = false, no_repair = false;
     int smooth = 10;
     mesh::MeshParams params;
 };
 
 // "L:MM" -> (label, size).
-mesh::TissueSize parse_tissue_size(const std::string& s)
+mesh::TissueSize parse_tissue_size(const std::string& s, const std::string& option)
 {
     const auto colon = s.find(':');
     try {
@@ -42,7 +43,7 @@ mesh::TissueSize parse_tissue_size(const std::string& s)
             throw std::invalid_argument("no colon");
         return {std::stoi(s.substr(0, colon)), std::stod(s.substr(colon + 1))};
     } catch (const std::exception&) {
-        throw CLI::ValidationError("--tissue-size", "expected LABEL:MM, got '" + s + "'");
+        throw CLI::ValidationError(option, "expected LABEL:MM, got '" + s + "'");
     }
 }
 
@@ -67,7 +68,15 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
     auto& p = o.params;
     p.tissues = o.tissues;
     for (const auto& s : o.tissue_sizes)
-        p.tissue_sizes.push_back(parse_tissue_size(s));
+        p.tissue_sizes.push_back(parse_tissue_size(s, "--tissue-size"));
+    for (const auto& s : o.tissue_distances) {
+        const auto d = parse_tissue_size(s, "--tissue-distance");
+        auto it = std::find_if(p.tissue_sizes.begin(), p.tissue_sizes.end(), [&](const auto& t) { return t.label == d.label; });
+        if (it == p.tissue_sizes.end())
+            p.tissue_sizes.push_back({d.label, 0, d.size});
+        else
+            it->facet_distance = d.size;
+    }
     if (!o.roi.empty()) {
         p.roi.kind = mesh::RegionOfInterest::Kind::Spheres;
         p.roi.centres = {{o.roi[0], o.roi[1], o.roi[2]}};
@@ -80,6 +89,8 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
     p.roi.size = o.roi_size;
     p.perturb = !o.no_perturb;
     p.exude = !o.no_exude;
+    p.peel_slivers = !o.no_peel;
+    p.repair_manifold = !o.no_repair;
     p.progress = [&](const std::string& s) { progress.message(s); };
 
     const auto t0 = std::chrono::steady_clock::now();
@@ -216,6 +227,14 @@ int main(int argc, char** argv)
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
     app.add_option("--tissue-size", o.tissue_sizes, "Per-tissue size LABEL:MM, e.g. 2:1.5 (repeatable)")->delimiter(',');
+    app.add_option("--tissue-distance", o.tissue_distances,
+                   "Per-tissue boundary tolerance LABEL:MM (default: the smaller of the curvature factor's and "
+                   "--distance-per-size x the tissue's size)")
+        ->delimiter(',');
+    app.add_option("--distance-per-size", p.distance_per_size,
+                   "Default boundary tolerance of a tissue as a fraction of its element size")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
     auto* roi = app.add_option("--roi", o.roi, "Region of interest: a ball x,y,z,r [mm] where the mesh is fine")
                     ->delimiter(',')
                     ->expected(4);
@@ -242,6 +261,8 @@ int main(int argc, char** argv)
         ->capture_default_str();
     app.add_flag("--no-perturb", o.no_perturb, "Skip CGAL's sliver perturbation");
     app.add_flag("--no-exude", o.no_exude, "Skip CGAL's sliver exudation");
+    app.add_flag("--no-peel", o.no_peel, "Keep the flat tets on the outer boundary (see docs/algorithms/meshing.md)");
+    app.add_flag("--no-repair", o.no_repair, "Keep tissues that touch themselves along an edge or at a vertex");
     app.add_flag("--lloyd", p.lloyd, "Lloyd smoothing before perturb/exude (slow)");
     app.add_flag("--odt", p.odt, "ODT smoothing before perturb/exude (slow)");
     app.add_option("--threads", p.threads, "Threads (0 = all cores, CGAL parallel mode; 1 = serial, repeatable)")

@@ -46,6 +46,12 @@ nlohmann::json report_json(const Report& r)
     j["mesh"] = {{"vertices", res.mesh.vertices.size()}, {"tets", res.mesh.tets.size()}, {"element_size_mm", res.size},
                  {"threads", res.threads}, {"padded", res.padded}, {"reference_edge_mm", q.reference_edge}};
     j["warnings"] = res.warnings;
+    const auto& mr = res.manifold_repair;
+    j["manifold_repair"] = {{"bad_vertices_before", mr.bad_vertices_before}, {"bad_vertices_after", mr.bad_vertices_after},
+                            {"tets_relabelled", mr.tets_relabelled}, {"tets_removed", mr.tets_removed},
+                            {"volume_mm3", mr.volume}};
+    j["slivers_peeled"] = {{"tets", res.peeled.tets}, {"volume_mm3", res.peeled.volume}};
+    j["optimisation"] = res.optimisation;
     for (const auto& t : res.tissues) {
         nlohmann::json tj{{"label", t.label},
                           {"name", name_of(r, t.label)},
@@ -54,6 +60,8 @@ nlohmann::json report_json(const Report& r)
                           {"mesh_volume_mm3", t.mesh_volume},
                           {"volume_ratio", t.label_volume > 0 ? t.mesh_volume / t.label_volume : 0.0},
                           {"tets", t.tets},
+                          {"element_size_mm", t.size},
+                          {"facet_distance_mm", t.facet_distance},
                           {"components", t.components},
                           {"components_meshed", t.components_meshed},
                           {"specks_dropped", t.specks_dropped}};
@@ -107,6 +115,12 @@ std::string report_text(const Report& r)
     }
     for (const auto& s : r.surfaces)
         os << "surface " << s.name << ": " << mesh::describe(s.check) << "\n";
+    if (!res.optimisation.empty() || res.peeled.tets > 0) {
+        std::snprintf(buf, sizeof buf, "optimisation: %s; %lld boundary slivers peeled (%.1f mm^3)\n",
+                      res.optimisation.empty() ? "none" : res.optimisation.c_str(), static_cast<long long>(res.peeled.tets),
+                      res.peeled.volume);
+        os << buf;
+    }
     for (const auto& w : res.warnings)
         os << "warning: " << w << "\n";
     os << mesh::format_quality_report(*r.quality);

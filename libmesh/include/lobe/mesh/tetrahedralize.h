@@ -15,10 +15,12 @@
 
 namespace lobe::mesh {
 
-//! A per-tissue element size.
+//! A per-tissue element size and boundary tolerance.
 struct TissueSize {
     int label = 0;
-    double size = 0; //!< [mm], as MeshParams::size
+    double size = 0;           //!< [mm], as MeshParams::size; 0 = MeshParams::size
+    double facet_distance = 0; //!< how far the tissue's boundary facets may lie from its label
+                               //!< surface [mm]; 0 = the default (MeshParams::distance_per_size)
 };
 
 //! Region of interest: the mesh is fine (roi.size) inside and coarsens outside it with the
@@ -44,6 +46,10 @@ struct MeshParams {
     double curvature_factor = 1.0;        //!< thesis: boundary element size <= factor x radius of
                                           //!< curvature, for radii >= min_feature_radius
     double min_feature_radius = 0;        //!< [mm] smallest curvature radius resolved; 0 = 1 voxel
+    double distance_per_size = 0.2;       //!< a tissue's boundary tolerance is at most this x its
+                                          //!< element size (and at most the curvature factor's),
+                                          //!< so that tissues meshed finer (vessels) keep their
+                                          //!< volume; TissueSize::facet_distance overrides it
     double facet_angle = 25;              //!< lower bound on surface facet angles [deg] (CGAL: <= 30)
     double radius_edge_ratio = 1.9;       //!< bound B on circumradius / shortest edge (< 2, thesis)
     double grading = 1.5;                 //!< max size ratio between neighbours for the ROI sizing
@@ -54,6 +60,12 @@ struct MeshParams {
     bool odt = false;                     //!< ODT smoothing before perturb/exude (slow)
     double optimisation_time_limit = 30;  //!< per optimisation pass [s]; 0 = none
     double sliver_bound = 12;             //!< perturb/exude target: min dihedral angle [deg]
+    bool peel_slivers = true;             //!< remove the tets flatter than sliver_bound that lie
+                                          //!< on the outer boundary with all four vertices on
+                                          //!< tissue surfaces (the exuder cannot remove them)
+    bool repair_manifold = true;          //!< relabel the few tets where a tissue (or the whole
+                                          //!< mesh) touches itself along an edge or at a vertex,
+                                          //!< so that every tissue surface is a manifold
     int min_component_voxels = 8;         //!< smaller connected components (6-connected) are
                                           //!< specks: relabelled to their neighbours' majority
     std::int64_t max_tets = 5'000'000;    //!< refuse requests estimated above this
@@ -81,6 +93,8 @@ struct TissueReport {
     double label_volume = 0;  //!< [mm^3]
     double mesh_volume = 0;   //!< [mm^3]
     std::int64_t tets = 0;
+    double size = 0;           //!< element size used [mm]
+    double facet_distance = 0; //!< boundary tolerance used [mm]
     int components = 0;
     int components_meshed = 0;
     int specks_dropped = 0;   //!< components below min_component_voxels
@@ -93,6 +107,20 @@ struct MeshResult {
     bool padded = false;                    //!< a tissue touched the volume border: padded by one
                                             //!< voxel of background so that it is closed there
     double size = 0;                        //!< the element size used [mm]
+    //! Manifold repair (MeshParams::repair_manifold): vertices where a tissue's region or the
+    //! whole mesh touched itself, before and after; the tets relabelled (to another tissue, or
+    //! removed) and their volume. The tissue volumes above are those after the repair.
+    struct ManifoldRepair {
+        std::int64_t bad_vertices_before = 0, bad_vertices_after = 0;
+        std::int64_t tets_relabelled = 0, tets_removed = 0;
+        double volume = 0; //!< [mm^3]
+    } manifold_repair;
+    //! Boundary slivers removed (MeshParams::peel_slivers).
+    struct Peeled {
+        std::int64_t tets = 0;
+        double volume = 0; //!< [mm^3]
+    } peeled;
+    std::string optimisation;               //!< CGAL's perturber and exuder outcomes
     int threads = 1;                        //!< threads used
     std::vector<std::string> warnings;      //!< specks dropped, pieces not meshed, ...
 };
