@@ -13,6 +13,8 @@
 #include <CGAL/Mesh_criteria_3.h>
 #include <CGAL/Mesh_triangulation_3.h>
 #include <CGAL/Random.h>
+#include <CGAL/Spatial_sort_traits_adapter_3.h>
+#include <CGAL/hilbert_sort.h>
 #include <CGAL/make_mesh_3.h>
 #include <CGAL/refine_mesh_3.h>
 // after Mesh_3's own headers: they declare the worksharing structures the optimisers use
@@ -474,6 +476,48 @@ void insert_initial_points(C3t3& c3t3, const Domain& domain, const Prepared& pr,
     }
 }
 
+// CGAL numbers the vertices in its triangulation's order, which scatters neighbours through
+// memory: a mass-spring step gathers each spring's second node, and once the node arrays outgrow
+// L2 those gathers miss (docs/benchmarks.md, "Liver meshes"). Renumber the vertices along a
+// Hilbert curve and sort the tets by their smallest vertex, which keeps the mesh unchanged.
+void spatial_order(core::TetMesh& m)
+{
+    using Map = CGAL::Pointer_property_map<K::Point_3>::type;
+    std::vector<K::Point_3> points;
+    points.reserve(m.vertices.size());
+    for (const auto& v : m.vertices)
+        points.emplace_back(v.x, v.y, v.z);
+    std::vector<std::size_t> order(points.size());
+    for (std::size_t i = 0; i < order.size(); ++i)
+        order[i] = i;
+    CGAL::hilbert_sort(order.begin(), order.end(),
+                       CGAL::Spatial_sort_traits_adapter_3<K, Map>(CGAL::make_property_map(points)));
+    std::vector<std::int32_t> rank(order.size());
+    std::vector<core::Vec3> vertices(order.size());
+    for (std::size_t i = 0; i < order.size(); ++i) {
+        rank[order[i]] = static_cast<std::int32_t>(i);
+        vertices[i] = m.vertices[order[i]];
+    }
+    m.vertices = std::move(vertices);
+    std::vector<std::size_t> tets(m.tets.size());
+    std::vector<std::int32_t> first(m.tets.size());
+    for (std::size_t t = 0; t < m.tets.size(); ++t) {
+        for (auto& v : m.tets[t])
+            v = rank[static_cast<std::size_t>(v)];
+        first[t] = *std::min_element(m.tets[t].begin(), m.tets[t].end());
+        tets[t] = t;
+    }
+    std::stable_sort(tets.begin(), tets.end(), [&](std::size_t a, std::size_t b) { return first[a] < first[b]; });
+    auto tets_sorted = m.tets;
+    auto labels_sorted = m.tet_labels;
+    for (std::size_t i = 0; i < tets.size(); ++i) {
+        tets_sorted[i] = m.tets[tets[i]];
+        labels_sorted[i] = m.tet_labels[tets[i]];
+    }
+    m.tets = std::move(tets_sorted);
+    m.tet_labels = std::move(labels_sorted);
+}
+
 // CGAL's refinement and optimisation, then the complex's cells as a TetMesh in physical space.
 // Serial (Sequential_tag) runs repeat exactly; Parallel_tag runs use TBB and vary run to run.
 template <class Tag>
@@ -638,6 +682,8 @@ void run_mesh_3(const Domain& domain, const SizingField& field, const FacetSizeF
         out.tets.push_back(t);
         out.tet_labels.push_back(cells.labels[c]);
     }
+    if (p.spatial_order)
+        spatial_order(out);
 }
 
 } // namespace
