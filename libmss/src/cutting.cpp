@@ -2,6 +2,7 @@
 #include "detail/cutting.h"
 
 #include "detail/tet_tables.h"
+#include "lobe/core/geometry.h"
 #include "lobe/mss/topology.h"
 
 #include <algorithm>
@@ -50,14 +51,14 @@ Side locate(const core::Vec3& p, const std::vector<const std::array<core::Vec3, 
     Side best;
     for (const auto* t : tris) {
         const auto& [a, b, c] = *t;
-        const core::Vec3 q = closest_on_triangle(p, a, b, c);
+        const core::Vec3 q = core::closest_on_triangle(p, a, b, c);
         const double dist = norm(p - q);
         if (dist >= best.dist)
             continue;
         const core::Vec3 n = normalized(cross(b - a, c - a));
         const double d = dot(p - a, n);
         const core::Vec3 proj = p - n * d;
-        best = {d, norm(proj - closest_on_triangle(proj, a, b, c)), dist};
+        best = {d, norm(proj - core::closest_on_triangle(proj, a, b, c)), dist};
     }
     return best;
 }
@@ -87,33 +88,6 @@ double rest_depth(const Model& model, std::int32_t v, const std::array<std::int3
 }
 
 } // namespace
-
-core::Vec3 closest_on_triangle(const core::Vec3& p, const core::Vec3& a, const core::Vec3& b, const core::Vec3& c)
-{
-    const core::Vec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
-    if (d1 <= 0 && d2 <= 0)
-        return a;
-    const core::Vec3 bp = p - b;
-    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
-    if (d3 >= 0 && d4 <= d3)
-        return b;
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0)
-        return a + ab * (d1 / (d1 - d3));
-    const core::Vec3 cp = p - c;
-    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
-    if (d6 >= 0 && d5 <= d6)
-        return c;
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0)
-        return a + ac * (d2 / (d2 - d6));
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    const double denom = 1 / (va + vb + vc);
-    return a + ab * (vb * denom) + ac * (vc * denom);
-}
 
 CutReport Cutting::cut(Model& model, State& st, BladeState& blade, double time)
 {

@@ -2,6 +2,7 @@
 // Two-sided Hausdorff distance between a tet mesh's boundary and the label surface (the
 // boundary of the union of the label's voxel boxes), for the meshing tests.
 
+#include "lobe/core/geometry.h"
 #include "lobe/core/image3d.h"
 #include "lobe/core/tet_mesh.h"
 
@@ -12,35 +13,6 @@
 #include <vector>
 
 namespace lobe::test {
-
-//! Closest point to p on the triangle abc (C. Ericson, Real-Time Collision Detection, 5.1.5).
-inline core::Vec3 closest_on_triangle(const core::Vec3& p, const core::Vec3& a, const core::Vec3& b, const core::Vec3& c)
-{
-    using core::dot;
-    const core::Vec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
-    if (d1 <= 0 && d2 <= 0)
-        return a;
-    const core::Vec3 bp = p - b;
-    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
-    if (d3 >= 0 && d4 <= d3)
-        return b;
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0)
-        return a + ab * (d1 / (d1 - d3));
-    const core::Vec3 cp = p - c;
-    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
-    if (d6 >= 0 && d5 <= d6)
-        return c;
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0)
-        return a + ac * (d2 / (d2 - d6));
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    const double denom = 1 / (va + vb + vc);
-    return a + ab * (vb * denom) + ac * (vc * denom);
-}
 
 //! The faces of `m` with a tet on one side only (the outer boundary).
 inline std::vector<std::array<core::Vec3, 3>> boundary_triangles(const core::TetMesh& m)
@@ -142,7 +114,7 @@ inline HausdorffResult hausdorff_to_labels(const core::TetMesh& m, const core::L
         const auto it = buckets.find(cell(p));
         if (it != buckets.end())
             for (auto n : it->second)
-                best = std::min(best, core::distance(p, closest_on_triangle(p, tris[n][0], tris[n][1], tris[n][2])));
+                best = std::min(best, core::distance(p, core::closest_on_triangle(p, tris[n][0], tris[n][1], tris[n][2])));
         return best;
     };
     const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};

@@ -68,7 +68,4 @@ private:
     double max_edge_mm_ = 0;
 };
 
-// Closest point of triangle (a, b, c) to p (Ericson, Real-Time Collision Detection 5.1.5).
-core::Vec3 closest_on_triangle(const core::Vec3& p, const core::Vec3& a, const core::Vec3& b, const core::Vec3& c);
-
 } // namespace lobe::mss::detail
