@@ -1,6 +1,6 @@
 // Step time with cutting and with refinement against the same scene without them, on liver
 // meshes (issue 8; docs/benchmarks.md, "Instruments"). Run by bench/mss/run_instruments.sh:
-//   instrument_bench SUMMARY.csv SERIES.csv MESH.h5 ...
+//   instrument_bench SUMMARY.csv SERIES.csv MESH.h5 ...   (SCENES=a,b: only those scenes)
 // For each mesh (its only tet mesh; HAVP springs with volume forces, the back fifth of the liver
 // fixed, critical step policy so that runs with and without instruments take comparable steps;
 // 0.2 s of simulated time or 2000 steps, whichever is less):
@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <string>
@@ -158,6 +159,10 @@ int main(int argc, char** argv)
             seconds = std::min(seconds, 2000 * mss::TimeStepParams{}.safety * m.critical_time_step());
         }
         for (const std::string scene : {"plain", "probe", "probe+refine", "cut"}) {
+            // SCENES=cut,probe+refine runs only those (e.g. under perf record).
+            const char* only = std::getenv("SCENES");
+            if (only && ("," + std::string(only) + ",").find("," + scene + ",") == std::string::npos)
+                continue;
             std::vector<std::pair<double, double>> series;
             const Result r = run(name, mesh, scene, seconds, scene == "cut" ? &series : nullptr);
             char line[512];

@@ -306,6 +306,7 @@ void Model::update_bounds() const
         lambda = std::max(lambda, row[i] / mass_[i / 3]);
     dt_gershgorin_ = 2 / std::sqrt(lambda);
     bounds_stale_ = false;
+    gershgorin_stale_ = false;
 }
 
 double Model::critical_time_step() const
@@ -316,7 +317,7 @@ double Model::critical_time_step() const
 }
 double Model::gershgorin_time_step() const
 {
-    if (bounds_stale_)
+    if (bounds_stale_ || gershgorin_stale_)
         update_bounds();
     return dt_gershgorin_;
 }

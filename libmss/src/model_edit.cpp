@@ -7,11 +7,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 #include <unordered_set>
 
 namespace lobe::mss {
 namespace {
+
+constexpr double kPi = 3.14159265358979323846;
 
 using detail::edge_first;
 using detail::edge_key;
@@ -363,8 +366,15 @@ EditResult Model::apply(const MeshEdit& e, State& st)
             for (auto w : mesh_.tets[std::size_t(t)])
                 if (w != v)
                     redo.insert(edge_slot_.at(edge_key(v, w)));
-    for (auto k : redo)
+    // Paloc's bound (min m/k over the springs) and the shortest edge follow the changed
+    // springs alone, so an edit costs what it touches, not the mesh.
+    double ratio = std::numeric_limits<double>::infinity(), shortest = ratio;
+    for (auto k : redo) {
         set_spring(std::size_t(k));
+        const auto a = std::size_t(springs_.a[std::size_t(k)]), b = std::size_t(springs_.b[std::size_t(k)]);
+        ratio = std::min(ratio, std::min(mass_[a], mass_[b]) / springs_.stiffness[std::size_t(k)]);
+        shortest = std::min(shortest, springs_.rest_length[std::size_t(k)]);
+    }
 
     // ---- boundary faces ----------------------------------------------------------------------
     unique_sorted(faces);
@@ -431,7 +441,16 @@ EditResult Model::apply(const MeshEdit& e, State& st)
     }
 
     surface_nodes_stale_ = true;
-    bounds_stale_ = true;
+    gershgorin_stale_ = true; // only reported: recomputed in full when asked
+    // The springs an edit removes can only raise the true minimum, so the running minimum errs
+    // on the safe side (a step no longer than the exact bound); an edit that removes vertices
+    // (coarsening) makes elements larger again and recomputes the bounds over the whole mesh.
+    if (!gone.empty())
+        bounds_stale_ = true;
+    else if (!bounds_stale_) {
+        dt_critical_ = std::min(dt_critical_, kPi * std::sqrt(ratio));
+        min_edge_ = std::min(min_edge_, shortest);
+    }
     return result;
 }
 

@@ -205,12 +205,14 @@ public:
     //! Paloc's per-spring critical time step pi sqrt(m/k) with m the smaller node mass of the
     //! spring (the thesis's eq. 3.1 with this model's k), minimised over springs [s]. Without a
     //! safety factor: the symplectic Euler limit is lower (docs/algorithms/mass_spring.md).
-    //! Recomputed after edits.
+    //! After an edit it is the smaller of the previous value and that of the springs the edit
+    //! changed (never above the exact minimum: removed springs can only raise it); an edit that
+    //! removes vertices recomputes it over the whole mesh.
     double critical_time_step() const;
     //! A guaranteed bound for the linearised undamped system at rest: 2 / sqrt(max_i sum_j
     //! |K_ij| / m_i) (Gershgorin on M^-1 K, springs and volume terms) [s].
     double gershgorin_time_step() const;
-    //! Shortest rest edge [m].
+    //! Shortest rest edge [m] (after edits: kept like critical_time_step()).
     double min_edge_length() const;
 
     // ---- local mesh changes ----------------------------------------------------------------
@@ -264,6 +266,7 @@ private:
     mutable bool surface_nodes_stale_ = false;
     mutable double dt_critical_ = 0, dt_gershgorin_ = 0, min_edge_ = 0;
     mutable bool bounds_stale_ = false;
+    mutable bool gershgorin_stale_ = false; // after edits (the critical step is kept up to date)
 
     // Editing (enable_editing): per spring the sums its stiffness law needs over the tets around
     // its edge; edge and boundary-face tables keyed by packed vertex indices.
