@@ -327,6 +327,11 @@ void Cutting::refresh_lips(const Model& model)
         }
     std::sort(lip_vertices_.begin(), lip_vertices_.end());
     lip_vertices_.erase(std::unique(lip_vertices_.begin(), lip_vertices_.end()), lip_vertices_.end());
+    lip_slots_.resize(lips_.size());
+    for (std::size_t f = 0; f < lips_.size(); ++f)
+        for (std::size_t j = 0; j < 3; ++j)
+            lip_slots_[f][j] = std::int32_t(std::lower_bound(lip_vertices_.begin(), lip_vertices_.end(), lips_[f][j]) -
+                                            lip_vertices_.begin());
     // Each lip vertex's neighbourhood (the vertices of its tets), and its lip faces.
     ring_start_.assign(1, 0);
     ring_.clear();
@@ -376,8 +381,8 @@ void Cutting::refresh_candidates(const State& st)
                          0.5 * std::max({norm(b - a), norm(c - b), norm(a - c)}) + 1.0;
         reach2[f] = r * r;
         grid[key(centre[f])].push_back(std::int32_t(f));
-        for (auto v : g)
-            normal[std::size_t(std::lower_bound(lip_vertices_.begin(), lip_vertices_.end(), v) - lip_vertices_.begin())] += nn;
+        for (auto slot : lip_slots_[f])
+            normal[std::size_t(slot)] += nn;
     }
     // Within the face's reach, facing the vertex's lip within 80 degrees (the per-step test asks
     // 60), not of its own neighbourhood.
@@ -412,12 +417,13 @@ int Cutting::keep_apart(const Model& model, State& st)
         return 0;
     // Lip normals now: area-weighted over each lip vertex's lip faces.
     std::vector<core::Vec3> normal(lip_vertices_.size(), core::Vec3{0, 0, 0});
-    for (const auto& g : lips_) {
+    for (std::size_t f = 0; f < lips_.size(); ++f) {
+        const auto& g = lips_[f];
         const core::Vec3 a = st.position_mm(std::size_t(g[0])), b = st.position_mm(std::size_t(g[1])),
                          c = st.position_mm(std::size_t(g[2]));
         const core::Vec3 nn = cross(b - a, c - a);
-        for (auto v : g)
-            normal[std::size_t(std::lower_bound(lip_vertices_.begin(), lip_vertices_.end(), v) - lip_vertices_.begin())] += nn;
+        for (auto slot : lip_slots_[f])
+            normal[std::size_t(slot)] += nn;
     }
     const auto& inv = model.inverse_masses();
     int count = 0;

@@ -62,6 +62,7 @@ private:
     std::vector<char> on_cut_;                       // per vertex: lies on a cut surface
     std::vector<std::array<std::int32_t, 3>> lips_;  // boundary faces on cuts, outward
     std::vector<std::int32_t> lip_vertices_;  // sorted
+    std::vector<std::array<std::int32_t, 3>> lip_slots_;  // each lip face's vertices in lip_vertices_
     std::vector<std::int32_t> ring_;          // per lip vertex: the vertices of its tets, sorted
     std::vector<std::size_t> ring_start_;
     std::vector<std::pair<std::int32_t, std::int32_t>> candidates_; // (lip vertex slot, lip face)
