@@ -1,5 +1,6 @@
 #include "lobe/seg/tumours.h"
 
+#include "detail/report.h"
 #include "detail/volume.h"
 #include "lobe/seg/distance_transform.h"
 #include "lobe/seg/edge_map.h"
@@ -18,19 +19,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::string fmt(double v, int digits = 1)
-{
-    std::ostringstream s;
-    s << std::fixed << std::setprecision(digits) << v;
-    return s.str();
-}
-
 void check_params(const TumourParams& p)
 {
-    auto nonneg = [](double v, const char* name) {
-        if (!(v >= 0) || !std::isfinite(v))
-            throw core::InvalidInputError(std::string("segment_tumours: ") + name + " must be finite and >= 0");
-    };
+    auto nonneg = [](double v, const char* name) { detail::require_nonnegative(v, "segment_tumours", name); };
     nonneg(p.smoothing_mm, "smoothing_mm");
     nonneg(p.vessel_margin_mm, "vessel_margin_mm");
     nonneg(p.min_contrast, "min_contrast");
@@ -97,7 +88,7 @@ TumourResult segment_tumours(const core::ImageF& image, const core::LabelImage3D
         const std::array<int, 3> v{static_cast<int>(std::lround(c.x)), static_cast<int>(std::lround(c.y)),
                                    static_cast<int>(std::lround(c.z))};
         if (!image.contains(v[0], v[1], v[2]) || !liver.at(v[0], v[1], v[2]))
-            throw core::InvalidInputError("segment_tumours: seed (" + fmt(s.x) + ", " + fmt(s.y) + ", " + fmt(s.z) +
+            throw core::InvalidInputError("segment_tumours: seed (" + detail::fixed(s.x) + ", " + detail::fixed(s.y) + ", " + detail::fixed(s.z) +
                                           ") mm is not inside the liver");
         seed_vox.push_back(v);
     }
@@ -190,16 +181,16 @@ TumourResult segment_tumours(const core::ImageF& image, const core::LabelImage3D
     const double tumour_centre = tumour_count > 0 ? tumour_sum / tumour_count : res.parenchyma - 2 * delta;
     res.threshold = 0.5 * (tumour_centre + res.parenchyma);
     lap("k-means");
-    say("parenchyma " + fmt(res.parenchyma) + " +- " + fmt(res.parenchyma_sigma) + " (smoothed); " +
-        (tumour_count > 0 ? "tumour layer at " + fmt(tumour_centre) + ", boundary " + fmt(res.threshold)
-                          : "no layer below " + fmt(res.parenchyma - delta)));
+    say("parenchyma " + detail::fixed(res.parenchyma) + " +- " + detail::fixed(res.parenchyma_sigma) + " (smoothed); " +
+        (tumour_count > 0 ? "tumour layer at " + detail::fixed(tumour_centre) + ", boundary " + detail::fixed(res.threshold)
+                          : "no layer below " + detail::fixed(res.parenchyma - delta)));
 
     std::vector<core::LabelImage3D> components; // each on the crop's grid
     std::vector<bool> from_seed;
     if (seed_vox.empty()) {
         if (tumour_count == 0) {
             res.message = "no tumours: no K-means layer inside the liver is darker than the parenchyma (" +
-                          fmt(res.parenchyma) + ") by " + fmt(delta) + " or more";
+                          detail::fixed(res.parenchyma) + ") by " + detail::fixed(delta) + " or more";
             res.timings.emplace_back("total", std::chrono::duration<double>(Clock::now() - t_start).count());
             say(res.message);
             return res;
@@ -233,7 +224,7 @@ TumourResult segment_tumours(const core::ImageF& image, const core::LabelImage3D
         }
         if (too_dark)
             res.message = std::to_string(too_dark) + " region" + (too_dark > 1 ? "s" : "") + " darker than parenchyma - " +
-                          fmt(params.max_contrast, 0) + " left out as fluid, bile or fat";
+                          detail::fixed(params.max_contrast, 0) + " left out as fluid, bile or fat";
     } else {
         // Semi-automatic: each seed's tumour is the region darker than half way between the
         // seed's surroundings and the parenchyma, grown from the seed.
@@ -250,8 +241,8 @@ TumourResult segment_tumours(const core::ImageF& image, const core::LabelImage3D
             const double seed_value = around.empty() ? static_cast<double>(S.at(v[0], v[1], v[2])) : detail::quantile(around, 0.5);
             if (res.parenchyma - seed_value < params.min_contrast) {
                 res.message += (res.message.empty() ? "" : "; ") + std::string("seed ") + std::to_string(s + 1) +
-                               ": not in a hypodense region (" + fmt(seed_value) + " against parenchyma " +
-                               fmt(res.parenchyma) + ")";
+                               ": not in a hypodense region (" + detail::fixed(seed_value) + " against parenchyma " +
+                               detail::fixed(res.parenchyma) + ")";
                 continue;
             }
             const double t = 0.5 * (seed_value + res.parenchyma);
@@ -408,7 +399,7 @@ TumourResult segment_tumours(const core::ImageF& image, const core::LabelImage3D
     res.found = !res.tumours.empty();
     std::string list;
     for (const auto& t : res.tumours)
-        list += (list.empty() ? "" : ", ") + fmt(t.volume_ml, 2) + " mL" + (t.touches_surface ? " (at the surface)" : "");
+        list += (list.empty() ? "" : ", ") + detail::fixed(t.volume_ml, 2) + " mL" + (t.touches_surface ? " (at the surface)" : "");
     const std::string what = res.found ? std::to_string(res.tumours.size()) + " tumour" + (res.tumours.size() > 1 ? "s: " : ": ") + list
                                        : "no tumours";
     res.message = res.message.empty() ? what : what + "; " + res.message;

@@ -1,5 +1,6 @@
 #include "lobe/seg/vessels.h"
 
+#include "detail/report.h"
 #include "detail/volume.h"
 #include "lobe/seg/distance_transform.h"
 #include "lobe/seg/edge_map.h"
@@ -26,19 +27,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::string fmt(double v, int digits = 1)
-{
-    std::ostringstream s;
-    s << std::fixed << std::setprecision(digits) << v;
-    return s.str();
-}
-
 void check_params(const VesselParams& p)
 {
-    auto nonneg = [](double v, const char* name) {
-        if (!(v >= 0) || !std::isfinite(v))
-            throw core::InvalidInputError(std::string("segment_vessels: ") + name + " must be finite and >= 0");
-    };
+    auto nonneg = [](double v, const char* name) { detail::require_nonnegative(v, "segment_vessels", name); };
     nonneg(p.smoothing_mm, "smoothing_mm");
     nonneg(p.parenchyma_erosion_mm, "parenchyma_erosion_mm");
     nonneg(p.vesselness_boost, "vesselness_boost");
@@ -273,7 +264,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
         res.parenchyma_sigma = std::max(1e-3, 1.4826 * detail::quantile(std::move(vals), 0.5));
     }
     sw.lap("smoothing");
-    say("parenchyma " + fmt(res.parenchyma) + " +- " + fmt(res.parenchyma_sigma) + " (smoothed)");
+    say("parenchyma " + detail::fixed(res.parenchyma) + " +- " + detail::fixed(res.parenchyma_sigma) + " (smoothed)");
 
     // 2. Enhancement: vesselness, then averaging along the vessel axis.
     core::ImageF F = S;                       // intensity the method reads
@@ -335,13 +326,13 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
     };
     if (seed_values.empty())
         return nothing("no vessels: no tubular structure inside the liver is brighter than the parenchyma (" +
-                       fmt(res.parenchyma) + ") by " + fmt(seed_level - res.parenchyma) + " or more");
+                       detail::fixed(res.parenchyma) + ") by " + detail::fixed(seed_level - res.parenchyma) + " or more");
     res.vessel_intensity = detail::quantile(seed_values, 0.75);
     res.contrast = res.vessel_intensity - res.parenchyma;
     if (res.contrast < params.min_contrast)
-        return nothing("no vessels: vessel contrast " + fmt(res.contrast) + " is below " + fmt(params.min_contrast));
+        return nothing("no vessels: vessel contrast " + detail::fixed(res.contrast) + " is below " + detail::fixed(params.min_contrast));
     say("seeds: " + std::to_string(res.seed_components) + " components, " + std::to_string(res.seed_voxels) +
-        " voxels; vessels " + fmt(res.vessel_intensity) + " (contrast " + fmt(res.contrast) + ")");
+        " voxels; vessels " + detail::fixed(res.vessel_intensity) + " (contrast " + detail::fixed(res.contrast) + ")");
 
     // 4. The feature: intensity lifted by the vesselness.
     core::ImageF G = F;
@@ -625,7 +616,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
         graph = std::move(kept);
     }
     if (graph.edges.empty())
-        return nothing("no vessels: the seeds grew into no tree longer than " + fmt(params.min_tree_length_mm, 0) + " mm");
+        return nothing("no vessels: the seeds grew into no tree longer than " + detail::fixed(params.min_tree_length_mm, 0) + " mm");
 
     // Trees that touch: a part with two roots far apart (the portal vein at the hilum and a
     // hepatic vein at the vena cava) is two trees joined where a branch of one grazes the other.
@@ -999,7 +990,7 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
                       return r.label == kPortalVeinLabel;
                   })) +
                   " portal), " + std::to_string(res.graph.edges.size()) + " segments, " + std::to_string(max_level) +
-                  " branch levels; portal " + fmt(res.portal_ml) + " mL, hepatic " + fmt(res.hepatic_ml) + " mL; " +
+                  " branch levels; portal " + detail::fixed(res.portal_ml) + " mL, hepatic " + detail::fixed(res.hepatic_ml) + " mL; " +
                   (res.separated_by_contrast ? "trees told apart by contrast" : "trees told apart by anatomy") +
                   (res.bridges ? ", " + std::to_string(res.bridges) + " gaps bridged" : "") +
                   (res.trees_cut ? ", " + std::to_string(res.trees_cut) + " contacts between trees cut" : "");

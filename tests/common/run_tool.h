@@ -26,6 +26,9 @@ inline std::string shell_quote(const std::string& s)
     return q + "'";
 }
 
+//! A path, quoted for the shell.
+inline std::string q(const std::filesystem::path& p) { return shell_quote(p.string()); }
+
 //! Runs `exe args...` (already quoted by the caller where needed) with stdout and stderr in
 //! temporary files beside `scratch`.
 inline ToolRun run_tool(const std::string& exe, const std::string& args, const std::filesystem::path& scratch)

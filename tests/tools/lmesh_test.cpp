@@ -17,14 +17,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using test::q;
+
 test::ToolRun lmesh(const std::string& args, const fs::path& scratch)
 {
     return test::run_tool(LMESH_EXE, args, scratch);
-}
-
-std::string q(const fs::path& p)
-{
-    return test::shell_quote(p.string());
 }
 
 // Liver (1): a 20 mm ball; tumour (4): a 6 mm ball inside it; on 0.8 mm voxels.

@@ -17,14 +17,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using test::q;
+
 test::ToolRun lseg(const std::string& args, const fs::path& scratch)
 {
     return test::run_tool(LSEG_EXE, args, scratch);
-}
-
-std::string q(const fs::path& p)
-{
-    return test::shell_quote(p.string());
 }
 
 core::ImageGeometry small_grid()

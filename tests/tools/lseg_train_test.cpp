@@ -5,6 +5,7 @@
 
 #include "common/expect_error.h"
 #include "common/run_tool.h"
+#include "tools/lseg_run.h"
 #include "common/test_data.h"
 
 // The reader lives in the tool (tools/lseg); tests/CMakeLists.txt compiles it into this test.
@@ -20,15 +21,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-test::ToolRun run_lseg(const std::string& args, const fs::path& scratch)
-{
-    return test::run_tool(LSEG_EXE, args, scratch);
-}
-
-std::string q(const fs::path& p)
-{
-    return test::shell_quote(p.string());
-}
+using test::q;
+using test::run_lseg;
 
 //! A coarse phantom (fast) written by lphantom into `dir`.
 fs::path phantom_dir(const fs::path& dir, const std::string& spacing, int seed)

@@ -4,6 +4,7 @@
 #include "lobe/io/image_io.h"
 
 #include "common/run_tool.h"
+#include "tools/lseg_run.h"
 #include "common/test_data.h"
 
 #include <gtest/gtest.h>
@@ -17,23 +18,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-test::ToolRun run_lseg(const std::string& args, const fs::path& scratch)
-{
-    return test::run_tool(LSEG_EXE, args, scratch);
-}
+using test::q;
+using test::run_lseg;
+using test::parameter;
 
-std::string q(const fs::path& p)
-{
-    return test::shell_quote(p.string());
-}
-
-std::string parameter(const io::Provenance& p, const std::string& key)
-{
-    for (const auto& [k, v] : p.parameters)
-        if (k == key)
-            return v;
-    return {};
-}
 
 double dice_from_eval(const std::string& out)
 {

@@ -16,9 +16,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using test::q;
+
 test::ToolRun lsim(const std::string& args, const fs::path& scratch) { return test::run_tool(LSIM_EXE, args, scratch); }
 
-std::string q(const fs::path& p) { return test::shell_quote(p.string()); }
 
 fs::path write_text(const fs::path& path, const std::string& text)
 {

@@ -139,8 +139,7 @@ int run_all(AllOptions& o, const tools::Progress& progress, tools::RunRecord& re
         std::cout << name << fixed(static_cast<double>(count[l]) * voxel_ml, 2) << "\n";
     }
     std::cout << "vessels: " << vr.message << "\ntumours: " << tr.message << "\n";
-    progress.message("wrote " + o.out.string() + (o.labels_out.empty() ? "" : ", " + o.labels_out.string()) +
-                     (o.png_dir.empty() ? "" : ", pictures in " + o.png_dir.string()));
+    progress.message(wrote_message(o.out, o.labels_out, o.png_dir));
     return tools::kExitOk;
 }
 

@@ -309,4 +309,11 @@ void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const
     tools::write_slice_png(dir / (prefix + "-tree.png"), mip, pp, {tov});
 }
 
+std::string wrote_message(const std::filesystem::path& out, const std::filesystem::path& labels_out,
+                          const std::filesystem::path& png_dir)
+{
+    return "wrote " + out.string() + (labels_out.empty() ? "" : ", " + labels_out.string()) +
+           (png_dir.empty() ? "" : ", pictures in " + png_dir.string());
+}
+
 } // namespace lobe::lseg

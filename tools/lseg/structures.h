@@ -69,4 +69,8 @@ void write_tumour_pictures(const std::filesystem::path& dir, const std::string& 
 //! "12.3" style formatting.
 std::string fixed(double v, int digits);
 
+//! "wrote OUT[, LABELS][, pictures in DIR]": the last progress line of vessels, tumours and all.
+std::string wrote_message(const std::filesystem::path& out, const std::filesystem::path& labels_out,
+                          const std::filesystem::path& png_dir);
+
 } // namespace lobe::lseg

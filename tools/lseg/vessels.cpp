@@ -67,8 +67,7 @@ int run_vessels(VesselOptions& o, const tools::Progress& progress, tools::RunRec
         if (!o.png_dir.empty())
             write_vessel_pictures(o.png_dir, "vessels", volume, liver, r);
     });
-    progress.message("wrote " + o.out.string() + (o.labels_out.empty() ? "" : ", " + o.labels_out.string()) +
-                     (o.png_dir.empty() ? "" : ", pictures in " + o.png_dir.string()));
+    progress.message(wrote_message(o.out, o.labels_out, o.png_dir));
     return tools::kExitOk;
 }
 
