@@ -29,31 +29,10 @@ using namespace lobe;
 
 namespace {
 
-constexpr double kE = 11000, kRho = 1060;
+using mss::statics::Variant;
+using mss::statics::tip_deflection;
+constexpr double kE = mss::statics::kLiverE, kRho = mss::statics::kLiverRho;
 constexpr double kBeamL = 0.08, kBeamB = 0.01, kTip = 4e-4; // Euler-Bernoulli tip deflection [m]
-
-struct Variant {
-    const char* name;
-    mss::Formulation formulation;
-    mss::Stiffness stiffness;
-};
-constexpr Variant kVariants[] = {
-    {"linear-fem", mss::Formulation::LinearFem, mss::Stiffness::VanGelder},
-    {"corotational-fem", mss::Formulation::CorotationalFem, mss::Stiffness::VanGelder},
-    {"constant", mss::Formulation::MassSpring, mss::Stiffness::Constant},
-    {"inverse-length", mss::Formulation::MassSpring, mss::Stiffness::InverseLength},
-    {"van-gelder", mss::Formulation::MassSpring, mss::Stiffness::VanGelder},
-    {"havp", mss::Formulation::MassSpring, mss::Stiffness::Havp},
-};
-
-mss::ModelParams params(const Variant& v)
-{
-    mss::ModelParams mp;
-    mp.formulation = v.formulation;
-    mp.stiffness = v.stiffness;
-    mp.tissues = {{1, kE, kRho}};
-    return mp;
-}
 
 // The prepared problem: a model with its fixed nodes and the state to start from.
 struct Problem {
@@ -68,7 +47,7 @@ Problem column(const Variant& v, int n)
     bp.cells = {n, n, 4 * n};
     bp.size = {20, 20, 80};
     bp.tets_per_cell = 5;
-    mss::Model m(mss::make_block_mesh(bp), params(v));
+    mss::Model m(mss::make_block_mesh(bp), mss::statics::liver_params(v));
     m.fix_box({-1, -1, -1}, {21, 21, 1e-6});
     m.fix_box({-1, -1, 80 - 1e-6}, {21, 21, 81});
     mss::State s = m.rest_state();
@@ -85,7 +64,7 @@ Problem beam(const Variant& v, int n)
     bp.cells = {8 * n, n, n};
     bp.size = {80, 10, 10};
     bp.tets_per_cell = 5;
-    mss::ModelParams mp = params(v);
+    mss::ModelParams mp = mss::statics::liver_params(v);
     const double area = kBeamB * kBeamB, inertia = area * area / 12;
     mp.gravity = {0, 0, -8 * kE * inertia * kTip / (kRho * area * kBeamL * kBeamL * kBeamL * kBeamL)};
     mss::Model m(mss::make_block_mesh(bp), mp);
@@ -103,18 +82,6 @@ double compression_force(const mss::Model& m, const mss::State& s)
         if (m.mesh().vertices[i].z > 80 - 1e-6)
             push += f[3 * i + 2];
     return push;
-}
-
-double tip_deflection(const mss::Model& m, const mss::State& s)
-{
-    double sum = 0;
-    int count = 0;
-    for (std::size_t i = 0; i < m.node_count(); ++i)
-        if (m.mesh().vertices[i].x > 80 - 1e-6) {
-            sum += m.rest_positions()[3 * i + 2] - s.x[3 * i + 2];
-            ++count;
-        }
-    return sum / count;
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t0)
@@ -173,7 +140,7 @@ int main(int argc, char** argv)
         const bool compression = std::string(problem) == "compression";
         for (int n : {2, 3, 4, 6, 8}) {
             double fem = 0;
-            for (const auto& v : kVariants) {
+            for (const auto& v : mss::statics::variants()) {
                 const Problem p = compression ? column(v, n) : beam(v, n);
                 const auto t0 = std::chrono::steady_clock::now();
                 const auto r = mss::statics::solve_static(p.model, p.start);
@@ -186,12 +153,12 @@ int main(int argc, char** argv)
                 double dt = 0;
                 const double step = time_per_step(p, dt);
                 std::fprintf(out, "%s,%s,%d,%zu,%zu,%zu,%.8g,%.8g,%.6f,%.8g,%.6f,%d,%d,%d,%.3g,%.3f,%.3f,%.6g,%.4f\n",
-                             problem, v.name, n, p.model.node_count(), p.model.springs().size(), p.model.tet_count(),
+                             problem, v.name.c_str(), n, p.model.node_count(), p.model.springs().size(), p.model.tet_count(),
                              value, analytic, value / analytic - 1, fem, value / fem - 1, r.iterations, r.jacobians,
                              r.colours, r.residual, t_static, step * 1e6, dt, step / dt);
                 std::fflush(out);
                 std::fprintf(stderr, "%s n=%d %-17s %.5g (%+.1f %% analytic, %+.1f %% FEM) %s, %.1f us/step\n", problem,
-                             n, v.name, value, (value / analytic - 1) * 100, (value / fem - 1) * 100,
+                             n, v.name.c_str(), value, (value / analytic - 1) * 100, (value / fem - 1) * 100,
                              r.converged ? "converged" : "NOT CONVERGED", step * 1e6);
                 std::fprintf(stderr, "    newton %d iterations, %d jacobians, residual %.2g, last step %.2g\n",
                              r.iterations, r.jacobians, r.residual, r.last_step);

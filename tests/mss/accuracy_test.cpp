@@ -16,36 +16,10 @@ using namespace lobe;
 
 namespace {
 
-constexpr double kE = 11000;  // liver [Pa]
-constexpr double kRho = 1060; // [kg/m^3]
-
-struct Variant {
-    std::string name;
-    mss::Formulation formulation;
-    mss::Stiffness stiffness;
-};
-
-const std::vector<Variant>& variants()
-{
-    static const std::vector<Variant> v = {
-        {"linear-fem", mss::Formulation::LinearFem, mss::Stiffness::VanGelder},
-        {"corotational-fem", mss::Formulation::CorotationalFem, mss::Stiffness::VanGelder},
-        {"constant", mss::Formulation::MassSpring, mss::Stiffness::Constant},
-        {"inverse-length", mss::Formulation::MassSpring, mss::Stiffness::InverseLength},
-        {"van-gelder", mss::Formulation::MassSpring, mss::Stiffness::VanGelder},
-        {"havp", mss::Formulation::MassSpring, mss::Stiffness::Havp},
-    };
-    return v;
-}
-
-mss::ModelParams params(const Variant& v)
-{
-    mss::ModelParams mp;
-    mp.formulation = v.formulation;
-    mp.stiffness = v.stiffness;
-    mp.tissues = {{1, kE, kRho}};
-    return mp;
-}
+using mss::statics::Variant;
+using mss::statics::tip_deflection;
+using mss::statics::variants;
+constexpr double kE = mss::statics::kLiverE, kRho = mss::statics::kLiverRho;
 
 // 20 x 20 x 80 mm column of n x n x 4n cells (5 tets each), both ends clamped, the top pushed
 // down by 1 %: the force on the top plate [N].
@@ -55,7 +29,7 @@ double compression_force(const Variant& v, int n)
     bp.cells = {n, n, 4 * n};
     bp.size = {20, 20, 80};
     bp.tets_per_cell = 5;
-    mss::Model m(mss::make_block_mesh(bp), params(v));
+    mss::Model m(mss::make_block_mesh(bp), mss::statics::liver_params(v));
     m.fix_box({-1, -1, -1}, {21, 21, 1e-6});
     m.fix_box({-1, -1, 80 - 1e-6}, {21, 21, 81});
     mss::State s = m.rest_state();
@@ -88,24 +62,11 @@ mss::Model beam(const Variant& v, int n)
     bp.cells = {8 * n, n, n};
     bp.size = {80, 10, 10};
     bp.tets_per_cell = 5;
-    mss::ModelParams mp = params(v);
+    mss::ModelParams mp = mss::statics::liver_params(v);
     mp.gravity = {0, 0, -beam_gravity()};
     mss::Model m(mss::make_block_mesh(bp), mp);
     m.fix_box({-1, -1, -1}, {1e-6, 11, 11});
     return m;
-}
-
-// Mean downward displacement of the free end face [m].
-double tip_deflection(const mss::Model& m, const mss::State& s)
-{
-    double sum = 0;
-    int count = 0;
-    for (std::size_t i = 0; i < m.node_count(); ++i)
-        if (m.mesh().vertices[i].x > 80 - 1e-6) {
-            sum += m.rest_positions()[3 * i + 2] - s.x[3 * i + 2];
-            ++count;
-        }
-    return sum / count;
 }
 
 double cantilever_deflection(const Variant& v, int n)

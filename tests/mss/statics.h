@@ -14,9 +14,58 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace lobe::mss::statics {
+
+// ---- what the accuracy tests and bench/mss/mss_accuracy compare ----------------------------
+constexpr double kLiverE = 11000;  //!< liver Young's modulus [Pa]
+constexpr double kLiverRho = 1060; //!< liver density [kg/m^3]
+
+//! One stiffness law or formulation under comparison.
+struct Variant {
+    std::string name;
+    Formulation formulation;
+    Stiffness stiffness;
+};
+
+//! The two FEM references, then the four mass-spring laws.
+inline const std::vector<Variant>& variants()
+{
+    static const std::vector<Variant> v = {
+        {"linear-fem", Formulation::LinearFem, Stiffness::VanGelder},
+        {"corotational-fem", Formulation::CorotationalFem, Stiffness::VanGelder},
+        {"constant", Formulation::MassSpring, Stiffness::Constant},
+        {"inverse-length", Formulation::MassSpring, Stiffness::InverseLength},
+        {"van-gelder", Formulation::MassSpring, Stiffness::VanGelder},
+        {"havp", Formulation::MassSpring, Stiffness::Havp},
+    };
+    return v;
+}
+
+//! One tissue (label 1) of liver under variant v.
+inline ModelParams liver_params(const Variant& v)
+{
+    ModelParams mp;
+    mp.formulation = v.formulation;
+    mp.stiffness = v.stiffness;
+    mp.tissues = {{1, kLiverE, kLiverRho}};
+    return mp;
+}
+
+//! Mean downward (-z) displacement of the beam's free end face (x > 80 mm) [m].
+inline double tip_deflection(const Model& m, const State& s)
+{
+    double sum = 0;
+    int count = 0;
+    for (std::size_t i = 0; i < m.node_count(); ++i)
+        if (m.mesh().vertices[i].x > 80 - 1e-6) {
+            sum += m.rest_positions()[3 * i + 2] - s.x[3 * i + 2];
+            ++count;
+        }
+    return sum / count;
+}
 
 struct StaticParams {
     //! Converged when the largest force on a free node is below tolerance x the largest one at
