@@ -113,6 +113,8 @@ mss::Model make_model(const core::TetMesh& mesh, const Config& c)
     mp.formulation = c.formulation;
     mp.stiffness = c.stiffness;
     mp.gravity = {0, 9.81, 0};
+    if (const char* t = std::getenv("MSS_THREADS")) // threads of the spring pass (ModelParams::threads)
+        mp.threads = std::atoi(t);
     mss::Model m(mesh, mp);
     double zmax = -std::numeric_limits<double>::infinity();
     for (const auto& v : mesh.vertices)

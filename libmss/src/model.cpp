@@ -12,6 +12,8 @@
 #include <limits>
 #include <tuple>
 
+#include <omp.h>
+
 namespace lobe::mss {
 namespace {
 
@@ -408,23 +410,79 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
     const double* ks = params_.formulation == Formulation::MassSpring ? springs_.stiffness.data() : fem_k_.data();
     const double* cs = springs_.damping.data();
     const std::size_t ns = springs_.size();
-    for (std::size_t k = 0; k < ns; ++k) {
-        const std::size_t a = 3 * static_cast<std::size_t>(sa[k]);
-        const std::size_t b = 3 * static_cast<std::size_t>(sb[k]);
-        const double dx = x[b] - x[a], dy = x[b + 1] - x[a + 1], dz = x[b + 2] - x[a + 2];
-        const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-        const double inv = 1 / l;
-        const double ext = l - l0[k];
-        const double vrel = ((v[b] - v[a]) * dx + (v[b + 1] - v[a + 1]) * dy + (v[b + 2] - v[a + 2]) * dz) * inv;
-        // Positive magnitude pulls a towards b: a stretched or separating spring.
-        const double m = (ks[k] * ext + cs[k] * vrel) * inv;
-        F[a] += m * dx;
-        F[a + 1] += m * dy;
-        F[a + 2] += m * dz;
-        F[b] -= m * dx;
-        F[b + 1] -= m * dy;
-        F[b + 2] -= m * dz;
-        e_springs += ks[k] * ext * ext;
+    const int threads = std::max(1, params_.threads);
+    if (threads == 1 || ns < 100000) { // below ~15 k nodes the fork and join cost more than they save
+        for (std::size_t k = 0; k < ns; ++k) {
+            const std::size_t a = 3 * static_cast<std::size_t>(sa[k]);
+            const std::size_t b = 3 * static_cast<std::size_t>(sb[k]);
+            const double dx = x[b] - x[a], dy = x[b + 1] - x[a + 1], dz = x[b + 2] - x[a + 2];
+            const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+            const double inv = 1 / l;
+            const double ext = l - l0[k];
+            const double vrel = ((v[b] - v[a]) * dx + (v[b + 1] - v[a + 1]) * dy + (v[b + 2] - v[a + 2]) * dz) * inv;
+            // Positive magnitude pulls a towards b: a stretched or separating spring.
+            const double m = (ks[k] * ext + cs[k] * vrel) * inv;
+            F[a] += m * dx;
+            F[a + 1] += m * dy;
+            F[a + 2] += m * dz;
+            F[b] -= m * dx;
+            F[b + 1] -= m * dy;
+            F[b + 2] -= m * dz;
+            e_springs += ks[k] * ext * ext;
+        }
+    } else {
+        // Thread t takes springs [ns t / T, ns (t + 1) / T) and owns the nodes [bound[t],
+        // bound[t + 1]): the first node of its first spring on (springs are sorted by first node
+        // when built, so nearly every write is its own; edits append springs out of order, which
+        // costs more hand-overs, never a wrong sum).
+        std::vector<std::int32_t> bound(std::size_t(threads) + 1, 0);
+        bound[std::size_t(threads)] = std::int32_t(n);
+        for (int t = 1; t < threads; ++t)
+            bound[std::size_t(t)] = std::max(bound[std::size_t(t) - 1], sa[ns * std::size_t(t) / std::size_t(threads)]);
+        spill_.resize(std::size_t(threads));
+        double e_sum = 0;
+#pragma omp parallel num_threads(threads) reduction(+ : e_sum)
+        // The runtime may give fewer threads than asked (OMP_THREAD_LIMIT, nesting): each one
+        // then takes several shares, so every spring is still counted once.
+        for (auto t = std::size_t(omp_get_thread_num()); t < std::size_t(threads);
+             t += std::size_t(omp_get_num_threads())) {
+            const std::size_t k0 = ns * t / std::size_t(threads), k1 = ns * (t + 1) / std::size_t(threads);
+            const std::int32_t lo = bound[t], hi = bound[t + 1];
+            auto& spill = spill_[t];
+            spill.clear();
+            for (std::size_t k = k0; k < k1; ++k) {
+                const std::int32_t ia = sa[k], ib = sb[k];
+                const std::size_t a = 3 * static_cast<std::size_t>(ia);
+                const std::size_t b = 3 * static_cast<std::size_t>(ib);
+                const double dx = x[b] - x[a], dy = x[b + 1] - x[a + 1], dz = x[b + 2] - x[a + 2];
+                const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+                const double inv = 1 / l;
+                const double ext = l - l0[k];
+                const double vrel =
+                    ((v[b] - v[a]) * dx + (v[b + 1] - v[a + 1]) * dy + (v[b + 2] - v[a + 2]) * dz) * inv;
+                const double m = (ks[k] * ext + cs[k] * vrel) * inv;
+                if (ia >= lo && ia < hi) {
+                    F[a] += m * dx;
+                    F[a + 1] += m * dy;
+                    F[a + 2] += m * dz;
+                } else {
+                    spill.push_back({ia, {m * dx, m * dy, m * dz}});
+                }
+                if (ib >= lo && ib < hi) {
+                    F[b] -= m * dx;
+                    F[b + 1] -= m * dy;
+                    F[b + 2] -= m * dz;
+                } else {
+                    spill.push_back({ib, {-m * dx, -m * dy, -m * dz}});
+                }
+                e_sum += ks[k] * ext * ext;
+            }
+        }
+        for (const auto& spill : spill_)
+            for (const auto& [node, g] : spill)
+                for (std::size_t c = 0; c < 3; ++c)
+                    F[3 * std::size_t(node) + c] += g[c];
+        e_springs = e_sum;
     }
     e_springs *= 0.5;
 

@@ -221,6 +221,7 @@ TEST(Lsim, InstrumentSectionsRefuseBadValuesNamingTheLine)
         {"[refine]\ncoarsen_factor = 0.5\n", "bad.scene:2: 'coarsen_factor' must be at least 1"},
         {"[refine]\nenabled = maybe\n", "bad.scene:2: 'enabled' is true or false"},
         {"[grasp]\njaws = 2\n", "bad.scene:2: unknown key 'jaws' in [grasp]"},
+        {"[model]\nthreads = 1.5\n", "bad.scene:2: threads must be a whole number from 1 to 64"},
     };
     for (const auto& [text, message] : cases) {
         const fs::path scene = write_text(dir / "bad.scene", text);

@@ -134,9 +134,14 @@ public:
                 else if (key == "gravity") {
                     const auto g = numbers(value, 3, key);
                     m.gravity = {g[0], g[1], g[2]};
+                } else if (key == "threads") {
+                    const double t = positive(value, key);
+                    if (t != std::floor(t) || t > 64)
+                        fail("threads must be a whole number from 1 to 64, got '" + value + "'");
+                    m.threads = static_cast<int>(t);
                 } else
                     fail("unknown key '" + key + "' in [model] (formulation, poisson_ratio, stiffness, havp_c, volume_coefficient, reference_length, "
-                         "damping_ratio, mass_damping, gravity)");
+                         "damping_ratio, mass_damping, gravity, threads)");
             } else if (section == "tissues") {
                 if (key == "density")
                     density = positive(value, key);

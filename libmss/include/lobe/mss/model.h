@@ -90,6 +90,13 @@ struct ModelParams {
     //! Mass-proportional (air) damping alpha [1/s]: f_i = -alpha m_i v_i.
     double mass_damping = 0;
     core::Vec3 gravity{0, 0, 0}; //!< [m/s^2], e.g. {0, 9.81, 0} for a supine patient in LPS
+    //! Threads of the spring pass (OpenMP). Each thread takes a contiguous share of the springs
+    //! and adds forces only to the nodes of its own index range, handing the few others to a
+    //! serial pass, so the sums do not depend on scheduling. 1 (the default) runs serially;
+    //! below 100 k springs (about 15 k nodes) the pass stays serial whatever this says: two
+    //! threads took 0.70 ms per Van Gelder step of a 12 k-node liver against 0.65 ms, and 4.8-5.4
+    //! against 7.4-8.2 ms at 106 k nodes (docs/benchmarks.md).
+    int threads = 1;
 };
 
 //! Node positions and velocities; what an integrator advances. Node i of the state is vertex i
@@ -266,6 +273,8 @@ private:
     mutable bool surface_nodes_stale_ = false;
     mutable double dt_critical_ = 0, dt_gershgorin_ = 0, min_edge_ = 0;
     mutable bool bounds_stale_ = false;
+    // Threaded spring pass: per thread, the forces it hands over (node, fx, fy, fz).
+    mutable std::vector<std::vector<std::pair<std::int32_t, std::array<double, 3>>>> spill_;
     mutable bool gershgorin_stale_ = false; // after edits (the critical step is kept up to date)
 
     // Editing (enable_editing): per spring the sums its stiffness law needs over the tets around
