@@ -273,9 +273,9 @@ private:
     mutable bool surface_nodes_stale_ = false;
     mutable double dt_critical_ = 0, dt_gershgorin_ = 0, min_edge_ = 0;
     mutable bool bounds_stale_ = false;
+    mutable bool gershgorin_stale_ = false; // after edits (the critical step is kept up to date)
     // Threaded spring pass: per thread, the forces it hands over (node, fx, fy, fz).
     mutable std::vector<std::vector<std::pair<std::int32_t, std::array<double, 3>>>> spill_;
-    mutable bool gershgorin_stale_ = false; // after edits (the critical step is kept up to date)
 
     // Editing (enable_editing): per spring the sums its stiffness law needs over the tets around
     // its edge; edge and boundary-face tables keyed by packed vertex indices.
