@@ -1,7 +1,6 @@
 // lseg all: the liver, its vessels and its tumours in one label volume (0 background, 1 liver
 // parenchyma, 2 portal vein, 3 hepatic veins, 4 tumour), with volumes, the vessel graph and pictures.
 #include "lseg/commands.h"
-#include "lseg/input.h"
 #include "lseg/structures.h"
 
 #include "common/picture.h"
@@ -33,16 +32,13 @@ struct AllOptions {
 int run_all(AllOptions& o, const tools::Progress& progress, tools::RunRecord& record)
 {
     auto& timings = record.timings;
-    std::vector<core::Vec3> seeds;
-    for (const auto& s : o.seeds)
-        seeds.push_back(parse_point(s));
+    const std::vector<core::Vec3> seeds = parse_points(o.seeds);
 
-    const bool h5_input = io::image_format(o.image) == io::ImageFormat::Hdf5;
-    const core::ImageF volume =
-        timings.time("read image", [&] { return core::convert_image<float>(read_any(o.image, h5_input ? o.image_name : "")); });
-    std::string liver_from;
-    const core::LabelImage3D liver = obtain_liver(o.image, volume, o.liver, progress, timings, liver_from);
-    progress.message("liver mask: " + liver_from);
+    const StructureInput in = read_structure_input(o.image, o.image_name, o.liver, progress, timings);
+    const bool h5_input = in.h5_input;
+    const core::ImageF& volume = in.volume;
+    const core::LabelImage3D& liver = in.liver;
+    const std::string& liver_from = in.liver_from;
 
     seg::VesselResult vr;
     seg::TumourResult tr;

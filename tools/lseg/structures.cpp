@@ -91,6 +91,26 @@ core::Vec3 parse_point(const std::string& text)
     return p;
 }
 
+std::vector<core::Vec3> parse_points(const std::vector<std::string>& texts)
+{
+    std::vector<core::Vec3> points;
+    for (const auto& t : texts)
+        points.push_back(parse_point(t));
+    return points;
+}
+
+StructureInput read_structure_input(const fs::path& image, const std::string& image_name, const LiverSource& source,
+                                    const tools::Progress& progress, tools::Timings& timings)
+{
+    StructureInput in;
+    in.h5_input = io::image_format(image) == io::ImageFormat::Hdf5;
+    in.volume = timings.time("read image",
+                             [&] { return core::convert_image<float>(read_any(image, in.h5_input ? image_name : "")); });
+    in.liver = obtain_liver(image, in.volume, source, progress, timings, in.liver_from);
+    progress.message("liver mask: " + in.liver_from);
+    return in;
+}
+
 core::LabelImage3D obtain_liver(const fs::path& image_path, const core::ImageF& image, const LiverSource& source,
                                 const tools::Progress& progress, tools::Timings& timings, std::string& how)
 {

@@ -35,6 +35,19 @@ core::LabelImage3D obtain_liver(const std::filesystem::path& image_path, const c
                                 const LiverSource& source, const tools::Progress& progress, tools::Timings& timings,
                                 std::string& how);
 
+//! What lseg vessels, tumours and all start from: the volume (an .h5 input's `image_name`) and
+//! the liver mask found for it (obtain_liver), with where it came from.
+struct StructureInput {
+    bool h5_input = false;    //!< the image came from a lobe .h5 (its provenance is carried over)
+    core::ImageF volume;
+    core::LabelImage3D liver;
+    std::string liver_from;   //!< obtain_liver's `how`
+};
+
+//! Reads the image and obtains its liver, timing both and reporting the mask's source.
+StructureInput read_structure_input(const std::filesystem::path& image, const std::string& image_name,
+                                    const LiverSource& source, const tools::Progress& progress, tools::Timings& timings);
+
 //! The label table of the tissue volume: 1 liver, 2 portal_vein, 3 hepatic_veins, 4 tumour.
 const io::LabelTable& tissue_table();
 
@@ -60,6 +73,8 @@ bool has_labels(const std::filesystem::path& path, const std::string& name);
 
 //! Parses "x,y,z" [mm]. \throw CLI::ValidationError (bad command line) otherwise.
 core::Vec3 parse_point(const std::string& text);
+//! parse_point of each text.
+std::vector<core::Vec3> parse_points(const std::vector<std::string>& texts);
 
 //! Axial pictures through each tumour's centre (at most three, largest first) with the tumour and
 //! liver contours: "<prefix>-1.png", ...

@@ -1,6 +1,5 @@
 // lseg tumours: liver tumours from K-means layers, or from seed points (lobe/seg/tumours.h).
 #include "lseg/commands.h"
-#include "lseg/input.h"
 #include "lseg/structures.h"
 
 #include "lobe/io/hdf5.h"
@@ -27,17 +26,14 @@ struct TumourOptions {
 int run_tumours(TumourOptions& o, const tools::Progress& progress, tools::RunRecord& record)
 {
     auto& timings = record.timings;
-    std::vector<core::Vec3> seeds;
-    for (const auto& s : o.seeds)
-        seeds.push_back(parse_point(s));
+    const std::vector<core::Vec3> seeds = parse_points(o.seeds);
     o.params.use_cdsg = o.cdsg;
 
-    const bool h5_input = io::image_format(o.image) == io::ImageFormat::Hdf5;
-    const core::ImageF volume =
-        timings.time("read image", [&] { return core::convert_image<float>(read_any(o.image, h5_input ? o.image_name : "")); });
-    std::string liver_from;
-    const core::LabelImage3D liver = obtain_liver(o.image, volume, o.liver, progress, timings, liver_from);
-    progress.message("liver mask: " + liver_from);
+    const StructureInput in = read_structure_input(o.image, o.image_name, o.liver, progress, timings);
+    const bool h5_input = in.h5_input;
+    const core::ImageF& volume = in.volume;
+    const core::LabelImage3D& liver = in.liver;
+    const std::string& liver_from = in.liver_from;
     // Vessels are left out of the clustering when known: --vessels, or labels/vessels of an .h5 input.
     core::LabelImage3D vessels;
     std::string vessels_from = "none";

@@ -1,6 +1,5 @@
 // lseg vessels: hepatic vessel trees inside the liver (lobe/seg/vessels.h).
 #include "lseg/commands.h"
-#include "lseg/input.h"
 #include "lseg/structures.h"
 
 #include "lobe/io/hdf5.h"
@@ -33,12 +32,11 @@ int run_vessels(VesselOptions& o, const tools::Progress& progress, tools::RunRec
     p.use_pruning = !o.no_pruning;
     p.bridge_gaps = !o.no_bridging;
 
-    const bool h5_input = io::image_format(o.image) == io::ImageFormat::Hdf5;
-    const core::ImageF volume =
-        timings.time("read image", [&] { return core::convert_image<float>(read_any(o.image, h5_input ? o.image_name : "")); });
-    std::string liver_from;
-    const core::LabelImage3D liver = obtain_liver(o.image, volume, o.liver, progress, timings, liver_from);
-    progress.message("liver mask: " + liver_from);
+    const StructureInput in = read_structure_input(o.image, o.image_name, o.liver, progress, timings);
+    const bool h5_input = in.h5_input;
+    const core::ImageF& volume = in.volume;
+    const core::LabelImage3D& liver = in.liver;
+    const std::string& liver_from = in.liver_from;
 
     seg::VesselResult r;
     try {
