@@ -24,4 +24,11 @@ inline std::string parameter(const io::Provenance& p, const std::string& key)
     return {};
 }
 
+//! The "dice" figure of `lseg eval --json` output; -1 if there is none.
+inline double dice_from_eval(const std::string& out)
+{
+    const auto at = out.find("\"dice\"");
+    return at == std::string::npos ? -1.0 : std::stod(out.substr(out.find(':', at) + 1));
+}
+
 } // namespace lobe::test

@@ -20,14 +20,9 @@ namespace {
 
 using test::q;
 using test::run_lseg;
+using test::dice_from_eval;
 using test::parameter;
 
-
-double dice_from_eval(const std::string& out)
-{
-    const auto at = out.find("\"dice\"");
-    return at == std::string::npos ? -1.0 : std::stod(out.substr(out.find(':', at) + 1));
-}
 
 } // namespace
 
