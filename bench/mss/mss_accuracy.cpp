@@ -31,57 +31,17 @@ namespace {
 
 using mss::statics::Variant;
 using mss::statics::tip_deflection;
-constexpr double kE = mss::statics::kLiverE, kRho = mss::statics::kLiverRho;
-constexpr double kBeamL = 0.08, kBeamB = 0.01, kTip = 4e-4; // Euler-Bernoulli tip deflection [m]
+constexpr double kE = mss::statics::kLiverE;
 
-// The prepared problem: a model with its fixed nodes and the state to start from.
-struct Problem {
-    mss::Model model;
-    mss::State start;
-};
+// The prepared problem: a model with its fixed nodes and the state to start from
+// (tests/mss/statics.h: the column and the cantilever the accuracy tests use).
+using Problem = mss::statics::Column;
 
-// 20 x 20 x 80 mm column, n x n x 4n cells, ends clamped, top moved down 1 %.
-Problem column(const Variant& v, int n)
-{
-    mss::BlockMeshParams bp;
-    bp.cells = {n, n, 4 * n};
-    bp.size = {20, 20, 80};
-    bp.tets_per_cell = 5;
-    mss::Model m(mss::make_block_mesh(bp), mss::statics::liver_params(v));
-    m.fix_box({-1, -1, -1}, {21, 21, 1e-6});
-    m.fix_box({-1, -1, 80 - 1e-6}, {21, 21, 81});
-    mss::State s = m.rest_state();
-    for (std::size_t i = 0; i < m.node_count(); ++i)
-        s.x[3 * i + 2] *= 0.99; // uniform strain: the top plate's move, and a start near the solution
-    return {std::move(m), std::move(s)};
-}
-
-// 80 x 10 x 10 mm beam along x, 8n x n x n cells, clamped at x = 0, gravity along -z scaled to
-// an Euler-Bernoulli tip deflection of 0.4 mm.
 Problem beam(const Variant& v, int n)
 {
-    mss::BlockMeshParams bp;
-    bp.cells = {8 * n, n, n};
-    bp.size = {80, 10, 10};
-    bp.tets_per_cell = 5;
-    mss::ModelParams mp = mss::statics::liver_params(v);
-    const double area = kBeamB * kBeamB, inertia = area * area / 12;
-    mp.gravity = {0, 0, -8 * kE * inertia * kTip / (kRho * area * kBeamL * kBeamL * kBeamL * kBeamL)};
-    mss::Model m(mss::make_block_mesh(bp), mp);
-    m.fix_box({-1, -1, -1}, {1e-6, 11, 11});
+    mss::Model m = mss::statics::cantilever(v, n);
     mss::State s = m.rest_state();
     return {std::move(m), std::move(s)};
-}
-
-double compression_force(const mss::Model& m, const mss::State& s)
-{
-    std::vector<double> f;
-    m.forces(s, f);
-    double push = 0;
-    for (std::size_t i = 0; i < m.node_count(); ++i)
-        if (m.mesh().vertices[i].z > 80 - 1e-6)
-            push += f[3 * i + 2];
-    return push;
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t0)
@@ -141,15 +101,15 @@ int main(int argc, char** argv)
         for (int n : {2, 3, 4, 6, 8}) {
             double fem = 0;
             for (const auto& v : mss::statics::variants()) {
-                const Problem p = compression ? column(v, n) : beam(v, n);
+                const Problem p = compression ? mss::statics::compression_column(v, n) : beam(v, n);
                 const auto t0 = std::chrono::steady_clock::now();
                 const auto r = mss::statics::solve_static(p.model, p.start);
                 const double t_static = seconds_since(t0);
                 const double value =
-                    compression ? compression_force(p.model, r.state) : tip_deflection(p.model, r.state);
+                    compression ? mss::statics::top_plate_force(p.model, r.state) : tip_deflection(p.model, r.state);
                 if (v.formulation == mss::Formulation::LinearFem)
                     fem = value;
-                const double analytic = compression ? analytic_force : kTip;
+                const double analytic = compression ? analytic_force : mss::statics::kBeamTip;
                 double dt = 0;
                 const double step = time_per_step(p, dt);
                 std::fprintf(out, "%s,%s,%d,%zu,%zu,%zu,%.8g,%.8g,%.6f,%.8g,%.6f,%d,%d,%d,%.3g,%.3f,%.3f,%.6g,%.4f\n",

@@ -16,62 +16,25 @@ using namespace lobe;
 
 namespace {
 
-using mss::statics::Variant;
+using mss::statics::cantilever;
 using mss::statics::tip_deflection;
+using mss::statics::Variant;
 using mss::statics::variants;
-constexpr double kE = mss::statics::kLiverE, kRho = mss::statics::kLiverRho;
+constexpr double kE = mss::statics::kLiverE;
+constexpr double kTip = mss::statics::kBeamTip;
 
-// 20 x 20 x 80 mm column of n x n x 4n cells (5 tets each), both ends clamped, the top pushed
-// down by 1 %: the force on the top plate [N].
+// The force on the column's top plate at equilibrium [N].
 double compression_force(const Variant& v, int n)
 {
-    mss::BlockMeshParams bp;
-    bp.cells = {n, n, 4 * n};
-    bp.size = {20, 20, 80};
-    bp.tets_per_cell = 5;
-    mss::Model m(mss::make_block_mesh(bp), mss::statics::liver_params(v));
-    m.fix_box({-1, -1, -1}, {21, 21, 1e-6});
-    m.fix_box({-1, -1, 80 - 1e-6}, {21, 21, 81});
-    mss::State s = m.rest_state();
-    for (std::size_t i = 0; i < m.node_count(); ++i)
-        s.x[3 * i + 2] *= 0.99; // uniform strain: the top plate's move, and a start near the solution
+    const auto [m, s] = mss::statics::compression_column(v, n);
     const auto r = mss::statics::solve_static(m, s);
     EXPECT_TRUE(r.converged) << v.name << " n=" << n << " residual " << r.residual;
-    std::vector<double> f;
-    m.forces(r.state, f);
-    double push = 0;
-    for (std::size_t i = 0; i < m.node_count(); ++i)
-        if (m.mesh().vertices[i].z > 80 - 1e-6)
-            push += f[3 * i + 2];
-    return push;
-}
-
-// Cantilever: 80 x 10 x 10 mm beam along x, 8n x n x n cells (5 tets each), clamped at x = 0,
-// bent by its own weight along -z. Gravity is scaled so that Euler-Bernoulli gives a tip
-// deflection of 0.4 mm (0.5 % of the length: the linear regime both theories assume).
-constexpr double kBeamL = 0.08, kBeamB = 0.01, kTip = 4e-4;
-double beam_gravity()
-{
-    const double area = kBeamB * kBeamB, inertia = kBeamB * kBeamB * kBeamB * kBeamB / 12;
-    return 8 * kE * inertia * kTip / (kRho * area * kBeamL * kBeamL * kBeamL * kBeamL);
-}
-
-mss::Model beam(const Variant& v, int n)
-{
-    mss::BlockMeshParams bp;
-    bp.cells = {8 * n, n, n};
-    bp.size = {80, 10, 10};
-    bp.tets_per_cell = 5;
-    mss::ModelParams mp = mss::statics::liver_params(v);
-    mp.gravity = {0, 0, -beam_gravity()};
-    mss::Model m(mss::make_block_mesh(bp), mp);
-    m.fix_box({-1, -1, -1}, {1e-6, 11, 11});
-    return m;
+    return mss::statics::top_plate_force(m, r.state);
 }
 
 double cantilever_deflection(const Variant& v, int n)
 {
-    const mss::Model m = beam(v, n);
+    const mss::Model m = cantilever(v, n);
     const auto r = mss::statics::solve_static(m, m.rest_state());
     EXPECT_TRUE(r.converged) << v.name << " n=" << n << " residual " << r.residual;
     return tip_deflection(m, r.state);
@@ -86,7 +49,7 @@ TEST(MssAccuracy, StaticSolverMatchesTheSimulatorsEquilibrium)
     // each step damps the motion strongly) for 20 s. The two agree to 0.1 %: the simulator stops
     // where its own linear solve (CG to 1e-8) and its leftover motion allow, which is far below that.
     const Variant havp = variants()[5];
-    const mss::Model m = beam(havp, 2);
+    const mss::Model m = cantilever(havp, 2);
     const double newton = tip_deflection(m, mss::statics::solve_static(m, m.rest_state()).state);
     mss::SimulatorParams sp;
     sp.integrator = mss::Integrator::BackwardEuler;

@@ -6,6 +6,7 @@
 // perturbs a whole colour at once). Using only the public forces, it treats every stiffness law
 // and both FEM formulations alike, and reaches the equilibrium that damped dynamics would reach
 // after many periods of the slowest (bending) mode in a handful of solves.
+#include "lobe/mss/block_mesh.h"
 #include "lobe/mss/model.h"
 
 #include <Eigen/Sparse>
@@ -52,6 +53,62 @@ inline ModelParams liver_params(const Variant& v)
     mp.stiffness = v.stiffness;
     mp.tissues = {{1, kLiverE, kLiverRho}};
     return mp;
+}
+
+//! The compression problem: a 20 x 20 x 80 mm column of n x n x 4n cells (5 tets each), both
+//! ends clamped, and the state with the top moved down 1 % (uniform strain: the top plate's
+//! move, and a start near the solution).
+struct Column {
+    Model model;
+    State start;
+};
+inline Column compression_column(const Variant& v, int n)
+{
+    BlockMeshParams bp;
+    bp.cells = {n, n, 4 * n};
+    bp.size = {20, 20, 80};
+    bp.tets_per_cell = 5;
+    Model m(make_block_mesh(bp), liver_params(v));
+    m.fix_box({-1, -1, -1}, {21, 21, 1e-6});
+    m.fix_box({-1, -1, 80 - 1e-6}, {21, 21, 81});
+    State s = m.rest_state();
+    for (std::size_t i = 0; i < m.node_count(); ++i)
+        s.x[3 * i + 2] *= 0.99;
+    return {std::move(m), std::move(s)};
+}
+
+//! Force of the column on its top plate (z = 80 mm) in state s [N].
+inline double top_plate_force(const Model& m, const State& s)
+{
+    std::vector<double> f;
+    m.forces(s, f);
+    double push = 0;
+    for (std::size_t i = 0; i < m.node_count(); ++i)
+        if (m.mesh().vertices[i].z > 80 - 1e-6)
+            push += f[3 * i + 2];
+    return push;
+}
+
+//! The cantilever: an 80 x 10 x 10 mm beam along x, 8n x n x n cells (5 tets each), clamped at
+//! x = 0, bent by its own weight along -z, the gravity scaled so that Euler-Bernoulli gives a tip
+//! deflection of kBeamTip (0.5 % of the length: the linear regime both theories assume).
+constexpr double kBeamLength = 0.08, kBeamSide = 0.01, kBeamTip = 4e-4; // [m]
+inline double beam_gravity()
+{
+    const double area = kBeamSide * kBeamSide, inertia = area * area / 12;
+    return 8 * kLiverE * inertia * kBeamTip / (kLiverRho * area * kBeamLength * kBeamLength * kBeamLength * kBeamLength);
+}
+inline Model cantilever(const Variant& v, int n)
+{
+    BlockMeshParams bp;
+    bp.cells = {8 * n, n, n};
+    bp.size = {80, 10, 10};
+    bp.tets_per_cell = 5;
+    ModelParams mp = liver_params(v);
+    mp.gravity = {0, 0, -beam_gravity()};
+    Model m(make_block_mesh(bp), mp);
+    m.fix_box({-1, -1, -1}, {1e-6, 11, 11});
+    return m;
 }
 
 //! Mean downward (-z) displacement of the beam's free end face (x > 80 mm) [m].
