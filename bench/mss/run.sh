@@ -24,24 +24,12 @@ if [ "$only" != scaling ]; then
 fi
 [ "$only" = accuracy ] && exit 0
 
-if [ -n "${MESHES:-}" ]; then
-  meshes="$MESHES"
-  mkdir -p "$meshes"
-else
-  meshes="$(mktemp -d)"
-  trap 'rm -rf "$meshes"' EXIT
-fi
 # The default phantom's liver (label 1) at sizes giving about 1k, 10k, 40k, 100k and 190k nodes.
 # Below ~3.4k nodes the boundary's curvature bound sets the count, so the 1k mesh relaxes it.
-# lmesh runs serially (--threads 1): its serial meshes repeat exactly.
-[ -f "$meshes/phantom/phantom.h5" ] || "$bin/lphantom" "$meshes/phantom" --quiet
+source "$repo/bench/mss/liver_meshes.sh"
 files=()
 for spec in "12:3" "5:2" "3:2" "2.2:2" "1.75:2"; do
-  size="${spec%%:*}" cf="${spec##*:}"
-  mesh="$meshes/liver_s${size}.h5"
-  [ -f "$mesh" ] || "$bin/lmesh" "$meshes/phantom/phantom.h5" --tissues 1 --size "$size" --curvature-factor "$cf" \
-    --threads 1 --quiet -o "$mesh"
-  files+=("$mesh")
+  files+=("$(liver_mesh "${spec%%:*}" "${spec##*:}")")
 done
 # The same meshes renumbered along a Morton curve, and mss_bench's cubes, for the explicit
 # springs-only and HAVP steps (the order's effect, and the earlier cube figures in the same run).

@@ -14,20 +14,7 @@ out="${OUT_DIR:-$repo/docs/benchmarks}"
 echo "machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc --all) CPUs; load average $(cut -d' ' -f1-3 /proc/loadavg)" >&2
 export OMP_NUM_THREADS=1 # Debian's CHOLMOD links libgomp; every figure is one thread
 mkdir -p "$out"
-if [ -n "${MESHES:-}" ]; then
-  meshes="$MESHES"
-  mkdir -p "$meshes"
-else
-  meshes="$(mktemp -d)"
-  trap 'rm -rf "$meshes"' EXIT
-fi
-[ -f "$meshes/phantom/phantom.h5" ] || "$bin/lphantom" "$meshes/phantom" --quiet
-files=()
-for size in 5 2.2; do # about 10k and 100k nodes (bench/mss/run.sh's sizes)
-  mesh="$meshes/liver_s${size}.h5"
-  [ -f "$mesh" ] || "$bin/lmesh" "$meshes/phantom/phantom.h5" --tissues 1 --size "$size" --curvature-factor 2 \
-    --threads 1 --quiet -o "$mesh"
-  files+=("$mesh")
-done
+source "$repo/bench/mss/liver_meshes.sh"
+files=("$(liver_mesh 5 2)" "$(liver_mesh 2.2 2)") # about 10k and 100k nodes (bench/mss/run.sh's sizes)
 "$bench/instrument_bench" "$out/instruments.csv" "$out/instruments_cut.csv" "${files[@]}"
 /usr/bin/python3 "$repo/bench/mss/plot_instruments.py" "$out/instruments_cut.csv" "$out/instruments_cut.png"
