@@ -43,11 +43,6 @@ Box bounds(const core::TetMesh& m)
     return b;
 }
 
-double fast(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d)
-{
-    return mesh::fast_measure(a, b, c, d);
-}
-
 struct Result {
     std::string mesh, scene;
     std::size_t nodes0 = 0, tets0 = 0, nodes1 = 0, tets1 = 0;
@@ -80,7 +75,7 @@ Result run(const std::string& name, const core::TetMesh& mesh, const std::string
     sp.time_step.policy = mss::StepPolicy::Critical;
     if (scene == "probe+refine") {
         sp.refine.enabled = true;
-        sp.refine.quality = fast;
+        sp.refine.quality = mesh::fast_measure;
     }
     Result r;
     r.mesh = name;

@@ -13,12 +13,6 @@ using namespace lobe;
 
 namespace {
 
-// The thesis's fast measure from libmesh, as lsim passes it (libmss does not link libmesh).
-double fast(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d)
-{
-    return mesh::fast_measure(a, b, c, d);
-}
-
 mss::Model block(int cells = 6)
 {
     mss::BlockMeshParams bp;
@@ -36,7 +30,7 @@ mss::SimulatorParams refining()
 {
     mss::SimulatorParams sp;
     sp.refine.enabled = true;
-    sp.refine.quality = fast;
+    sp.refine.quality = mesh::fast_measure; // as lsim passes it (libmss does not link libmesh)
     sp.refine.min_quality = 0.1;
     return sp;
 }
@@ -82,7 +76,7 @@ TEST(MssRefine, RefinesUnderTheProbeAndCoarsensBackWhenItLeaves)
     double worst = 1;
     for (const auto& q : m.mesh().tets) {
         const auto& v = m.mesh().vertices;
-        worst = std::min(worst, fast(v[std::size_t(q[0])], v[std::size_t(q[1])], v[std::size_t(q[2])], v[std::size_t(q[3])]));
+        worst = std::min(worst, mesh::fast_measure(v[std::size_t(q[0])], v[std::size_t(q[1])], v[std::size_t(q[2])], v[std::size_t(q[3])]));
     }
     EXPECT_GE(worst, 0.1);
     const double reach = 12 + 2 * 10 * 1.3; // probe radius + 2 x mean edge (edges 10-17 mm)

@@ -30,13 +30,6 @@ std::string num(double v)
 
 const io::LabelTable kTissueTable = {{1, "liver"}, {2, "portal_vein"}, {3, "hepatic_veins"}, {4, "tumour"}};
 
-// The thesis's fast tetrahedron measure (eq 6.17), from libmesh: the refinement's quality check
-// (libmss takes it as a function so that it need not link libmesh).
-double fast_quality(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d)
-{
-    return mesh::fast_measure(a, b, c, d);
-}
-
 // What a picture needs of the simulation at one frame: the boundary, coloured by tissue, and
 // where the instruments are.
 Snapshot snapshot(const mss::Simulator& sim, double t)
@@ -103,7 +96,9 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
                          num(model.critical_time_step() * 1e3) + " ms");
         mss::SimulatorParams params = scene.simulator;
         if (params.refine.enabled)
-            params.refine.quality = fast_quality;
+            // The thesis's fast measure (eq 6.17) from libmesh: libmss takes the quality check as a
+            // function so that it need not link libmesh.
+            params.refine.quality = mesh::fast_measure;
         sim.emplace(std::move(model), params);
         try {
             for (const auto& p : scene.probes)
