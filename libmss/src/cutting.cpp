@@ -366,7 +366,7 @@ void Cutting::refresh_candidates(const State& st)
     grid.reserve(lips_.size());
     std::vector<core::Vec3> centre(lips_.size()), fnormal(lips_.size());
     std::vector<double> reach2(lips_.size());
-    std::vector<core::Vec3> normal(lip_vertices_.size(), core::Vec3{0, 0, 0});
+    const std::vector<core::Vec3> normal = lip_normals(st);
     for (std::size_t f = 0; f < lips_.size(); ++f) {
         const auto& g = lips_[f];
         const core::Vec3 a = st.position_mm(std::size_t(g[0])), b = st.position_mm(std::size_t(g[1])),
@@ -381,8 +381,6 @@ void Cutting::refresh_candidates(const State& st)
                          0.5 * std::max({norm(b - a), norm(c - b), norm(a - c)}) + 1.0;
         reach2[f] = r * r;
         grid[key(centre[f])].push_back(std::int32_t(f));
-        for (auto slot : lip_slots_[f])
-            normal[std::size_t(slot)] += nn;
     }
     // Within the face's reach, facing the vertex's lip within 80 degrees (the per-step test asks
     // 60), not of its own neighbourhood.
@@ -411,11 +409,8 @@ void Cutting::refresh_candidates(const State& st)
     }
 }
 
-int Cutting::keep_apart(const Model& model, State& st)
+std::vector<core::Vec3> Cutting::lip_normals(const State& st) const
 {
-    if (candidates_.empty())
-        return 0;
-    // Lip normals now: area-weighted over each lip vertex's lip faces.
     std::vector<core::Vec3> normal(lip_vertices_.size(), core::Vec3{0, 0, 0});
     for (std::size_t f = 0; f < lips_.size(); ++f) {
         const auto& g = lips_[f];
@@ -425,6 +420,14 @@ int Cutting::keep_apart(const Model& model, State& st)
         for (auto slot : lip_slots_[f])
             normal[std::size_t(slot)] += nn;
     }
+    return normal;
+}
+
+int Cutting::keep_apart(const Model& model, State& st)
+{
+    if (candidates_.empty())
+        return 0;
+    const std::vector<core::Vec3> normal = lip_normals(st); // the lips' directions now
     const auto& inv = model.inverse_masses();
     int count = 0;
     for (const auto& [slot, f] : candidates_) {

@@ -59,6 +59,10 @@ public:
     bool on_cut(std::int32_t v) const { return std::size_t(v) < on_cut_.size() && on_cut_[std::size_t(v)]; }
 
 private:
+    // Per lip vertex (in lip_vertices_ order), the sum of its lip faces' area vectors in `state`:
+    // the direction its lip faces.
+    std::vector<core::Vec3> lip_normals(const State& state) const;
+
     std::vector<char> on_cut_;                       // per vertex: lies on a cut surface
     std::vector<std::array<std::int32_t, 3>> lips_;  // boundary faces on cuts, outward
     std::vector<std::int32_t> lip_vertices_;  // sorted
