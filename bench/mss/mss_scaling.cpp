@@ -115,6 +115,8 @@ mss::Model make_model(const core::TetMesh& mesh, const Config& c)
     mp.gravity = {0, 9.81, 0};
     if (const char* t = std::getenv("MSS_THREADS")) // threads of the spring pass (ModelParams::threads)
         mp.threads = std::atoi(t);
+    if (const char* simd = std::getenv("MSS_SIMD")) // 0: the scalar spring loop (ModelParams::simd)
+        mp.simd = std::atoi(simd) != 0;
     mss::Model m(mesh, mp);
     double zmax = -std::numeric_limits<double>::infinity();
     for (const auto& v : mesh.vertices)

@@ -2,6 +2,7 @@
 // (docs/algorithms/mass_spring.md).
 #include "lobe/mss/model.h"
 
+#include "detail/spring_kernel.h"
 #include "detail/tet_tables.h"
 #include "lobe/core/errors.h"
 
@@ -21,6 +22,10 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kMmToM = 1e-3;
 
 bool positive_finite(double v) { return std::isfinite(v) && v > 0; }
+
+// Below this many springs (about 15 k nodes) the spring pass stays serial whatever
+// ModelParams::threads says: the fork and joins cost more than a second thread saves.
+constexpr std::size_t kThreadedSprings = 100000;
 
 using detail::kTetEdges;
 using detail::kTetFaces;
@@ -45,6 +50,8 @@ Stiffness parse_stiffness(const std::string& name)
             return s;
     throw core::InvalidInputError("unknown stiffness law '" + name + "' (constant, inverse-length, van-gelder, havp)");
 }
+
+bool simd_spring_kernel_available() { return detail::cpu_has_simd_kernel(); }
 
 const char* formulation_name(Formulation f)
 {
@@ -395,97 +402,103 @@ State Model::rest_state() const
 void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
 {
     const std::size_t n = mass_.size();
-    f.assign(3 * n, 0.0);
+    f.resize(3 * n);
     const double* x = s.x.data();
     const double* v = s.v.data();
     double* F = f.data();
     double e_springs = 0;
 
-    // The hot loop: one pass over the springs in their stored order (sorted by first node when
-    // built, so positions stream; grouping the first node's sums in registers measured no gain,
-    // docs/benchmarks.md, and a flat list lets edits append and remove springs).
-    const std::int32_t* sa = springs_.a.data();
-    const std::int32_t* sb = springs_.b.data();
-    const double* l0 = springs_.rest_length.data();
-    const double* ks = params_.formulation == Formulation::MassSpring ? springs_.stiffness.data() : fem_k_.data();
-    const double* cs = springs_.damping.data();
+    // The springs in their stored order (sorted by first node when built, so positions
+    // stream; a flat list lets edits append and remove springs), on positions and velocities
+    // packed per node (detail/spring_kernel.h): the packing costs a pass over the nodes and
+    // spares the spring pass most of its scattered loads.
     const std::size_t ns = springs_.size();
-    const int threads = std::max(1, params_.threads);
-    // The serial loop is kept apart from the threaded one: running it as a one-thread team of the
-    // threaded loop (ownership checks always true) measured 7-10 % slower per step (0.73-0.75
-    // against 0.67-0.68 ms, Van Gelder, 12 k-node liver). Below ~15 k nodes the fork and join
-    // cost more than two threads save.
-    if (threads == 1 || ns < 100000) {
-        for (std::size_t k = 0; k < ns; ++k) {
-            const std::size_t a = 3 * static_cast<std::size_t>(sa[k]);
-            const std::size_t b = 3 * static_cast<std::size_t>(sb[k]);
-            const double dx = x[b] - x[a], dy = x[b + 1] - x[a + 1], dz = x[b + 2] - x[a + 2];
-            const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-            const double inv = 1 / l;
-            const double ext = l - l0[k];
-            const double vrel = ((v[b] - v[a]) * dx + (v[b + 1] - v[a + 1]) * dy + (v[b + 2] - v[a + 2]) * dz) * inv;
-            // Positive magnitude pulls a towards b: a stretched or separating spring.
-            const double m = (ks[k] * ext + cs[k] * vrel) * inv;
-            F[a] += m * dx;
-            F[a + 1] += m * dy;
-            F[a + 2] += m * dz;
-            F[b] -= m * dx;
-            F[b + 1] -= m * dy;
-            F[b + 2] -= m * dz;
-            e_springs += ks[k] * ext * ext;
+    const detail::SpringArrays arrays{springs_.a.data(),
+                                      springs_.b.data(),
+                                      springs_.rest_length.data(),
+                                      params_.formulation == Formulation::MassSpring ? springs_.stiffness.data()
+                                                                                     : fem_k_.data(),
+                                      springs_.damping.data(),
+                                      ns};
+    double* p = detail::aligned64(packed_, 8 * n);
+    double* fp = detail::aligned64(packed_f_, 4 * n);
+    // Packs nodes [i0, i1) and starts their force sums with gravity and mass damping; the same
+    // pass takes their kinetic and gravitational energies.
+    const double gx = params_.gravity.x, gy = params_.gravity.y, gz = params_.gravity.z;
+    const double alpha = params_.mass_damping;
+    auto pack = [&](std::size_t i0, std::size_t i1, double& e_gravity, double& e_kinetic) {
+        for (std::size_t i = i0; i < i1; ++i) {
+            const double m = mass_[i];
+            const double* xi = x + 3 * i;
+            const double* vi = v + 3 * i;
+            double* pi = p + 8 * i;
+            pi[0] = xi[0];
+            pi[1] = xi[1];
+            pi[2] = xi[2];
+            pi[3] = 0;
+            pi[4] = vi[0];
+            pi[5] = vi[1];
+            pi[6] = vi[2];
+            pi[7] = 0;
+            fp[4 * i] = m * (gx - alpha * vi[0]);
+            fp[4 * i + 1] = m * (gy - alpha * vi[1]);
+            fp[4 * i + 2] = m * (gz - alpha * vi[2]);
+            fp[4 * i + 3] = 0;
+            e_gravity -= m * (gx * (xi[0] - rest_[3 * i]) + gy * (xi[1] - rest_[3 * i + 1]) +
+                              gz * (xi[2] - rest_[3 * i + 2]));
+            e_kinetic += 0.5 * m * (vi[0] * vi[0] + vi[1] * vi[1] + vi[2] * vi[2]);
         }
+    };
+    auto unpack = [&](std::size_t i0, std::size_t i1) {
+        for (std::size_t i = i0; i < i1; ++i) {
+            F[3 * i] = fp[4 * i];
+            F[3 * i + 1] = fp[4 * i + 1];
+            F[3 * i + 2] = fp[4 * i + 2];
+        }
+    };
+    double e_gravity = 0, e_kinetic = 0;
+    const int threads = ns < kThreadedSprings ? 1 : std::max(1, params_.threads);
+    if (threads == 1) {
+        pack(0, n, e_gravity, e_kinetic);
+        e_springs = detail::spring_forces(arrays, 0, ns, p, fp, 0, std::int32_t(n), nullptr, params_.simd);
+        unpack(0, n);
     } else {
         // Thread t takes springs [ns t / T, ns (t + 1) / T) and owns the nodes [bound[t],
         // bound[t + 1]): the first node of its first spring on (springs are sorted by first node
         // when built, so nearly every write is its own; edits append springs out of order, which
-        // costs more hand-overs, never a wrong sum).
+        // costs more hand-overs, never a wrong sum). Each node's sum is its owner's springs in
+        // spring order, then the hand-overs in thread order: the same whatever the scheduling.
         std::vector<std::int32_t> bound(std::size_t(threads) + 1, 0);
         bound[std::size_t(threads)] = std::int32_t(n);
         for (int t = 1; t < threads; ++t)
-            bound[std::size_t(t)] = std::max(bound[std::size_t(t) - 1], sa[ns * std::size_t(t) / std::size_t(threads)]);
+            bound[std::size_t(t)] =
+                std::max(bound[std::size_t(t) - 1], arrays.a[ns * std::size_t(t) / std::size_t(threads)]);
         spill_.resize(std::size_t(threads));
+        const auto shares = std::size_t(threads);
         double e_sum = 0;
-#pragma omp parallel num_threads(threads) reduction(+ : e_sum)
-        // The runtime may give fewer threads than asked (OMP_THREAD_LIMIT, nesting): each one
-        // then takes several shares, so every spring is still counted once.
-        for (auto t = std::size_t(omp_get_thread_num()); t < std::size_t(threads);
-             t += std::size_t(omp_get_num_threads())) {
-            const std::size_t k0 = ns * t / std::size_t(threads), k1 = ns * (t + 1) / std::size_t(threads);
-            const std::int32_t lo = bound[t], hi = bound[t + 1];
-            auto& spill = spill_[t];
-            spill.clear();
-            for (std::size_t k = k0; k < k1; ++k) {
-                const std::int32_t ia = sa[k], ib = sb[k];
-                const std::size_t a = 3 * static_cast<std::size_t>(ia);
-                const std::size_t b = 3 * static_cast<std::size_t>(ib);
-                const double dx = x[b] - x[a], dy = x[b + 1] - x[a + 1], dz = x[b + 2] - x[a + 2];
-                const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-                const double inv = 1 / l;
-                const double ext = l - l0[k];
-                const double vrel =
-                    ((v[b] - v[a]) * dx + (v[b + 1] - v[a + 1]) * dy + (v[b + 2] - v[a + 2]) * dz) * inv;
-                const double m = (ks[k] * ext + cs[k] * vrel) * inv;
-                if (ia >= lo && ia < hi) {
-                    F[a] += m * dx;
-                    F[a + 1] += m * dy;
-                    F[a + 2] += m * dz;
-                } else {
-                    spill.push_back({ia, {m * dx, m * dy, m * dz}});
-                }
-                if (ib >= lo && ib < hi) {
-                    F[b] -= m * dx;
-                    F[b + 1] -= m * dy;
-                    F[b + 2] -= m * dz;
-                } else {
-                    spill.push_back({ib, {-m * dx, -m * dy, -m * dz}});
-                }
-                e_sum += ks[k] * ext * ext;
+#pragma omp parallel num_threads(threads) reduction(+ : e_sum, e_gravity, e_kinetic)
+        {
+            // The runtime may give fewer threads than asked (OMP_THREAD_LIMIT, nesting): each one
+            // then takes several shares, so every node and spring is still done once.
+            const auto first = std::size_t(omp_get_thread_num()), stride = std::size_t(omp_get_num_threads());
+            for (std::size_t t = first; t < shares; t += stride)
+                pack(std::size_t(bound[t]), std::size_t(bound[t + 1]), e_gravity, e_kinetic);
+#pragma omp barrier
+            for (std::size_t t = first; t < shares; t += stride) {
+                spill_[t].clear();
+                e_sum += detail::spring_forces(arrays, ns * t / shares, ns * (t + 1) / shares, p, fp, bound[t],
+                                               bound[t + 1], &spill_[t], params_.simd);
+            }
+#pragma omp barrier
+            for (std::size_t t = first; t < shares; t += stride) {
+                for (const auto& spill : spill_)
+                    for (const auto& [node, g] : spill)
+                        if (node >= bound[t] && node < bound[t + 1])
+                            for (std::size_t c = 0; c < 3; ++c)
+                                fp[4 * std::size_t(node) + c] += g[c];
+                unpack(std::size_t(bound[t]), std::size_t(bound[t + 1]));
             }
         }
-        for (const auto& spill : spill_)
-            for (const auto& [node, g] : spill)
-                for (std::size_t c = 0; c < 3; ++c)
-                    F[3 * std::size_t(node) + c] += g[c];
         e_springs = e_sum;
     }
     e_springs *= 0.5;
@@ -569,19 +582,6 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
         }
     }
 
-    const double gx = params_.gravity.x, gy = params_.gravity.y, gz = params_.gravity.z;
-    const double alpha = params_.mass_damping;
-    double e_gravity = 0, e_kinetic = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-        const double m = mass_[i];
-        const double* vi = v + 3 * i;
-        F[3 * i] += m * (gx - alpha * vi[0]);
-        F[3 * i + 1] += m * (gy - alpha * vi[1]);
-        F[3 * i + 2] += m * (gz - alpha * vi[2]);
-        e_gravity -= m * (gx * (x[3 * i] - rest_[3 * i]) + gy * (x[3 * i + 1] - rest_[3 * i + 1]) +
-                          gz * (x[3 * i + 2] - rest_[3 * i + 2]));
-        e_kinetic += 0.5 * m * (vi[0] * vi[0] + vi[1] * vi[1] + vi[2] * vi[2]);
-    }
     if (energy) {
         energy->kinetic = e_kinetic;
         energy->springs = e_springs;

@@ -1,5 +1,6 @@
 // lsim run as a program: exit codes, messages, the container it writes, pictures.
 #include "lobe/io/hdf5.h"
+#include "lobe/mss/model.h"
 
 #include "common/run_tool.h"
 #include "common/test_data.h"
@@ -97,9 +98,14 @@ TEST(Lsim, RunsAProbeSceneAndWritesFramesStepsStatisticsAndPictures)
     ASSERT_EQ(prov.size(), 2u); // --make-block, then this run
     EXPECT_EQ(prov[1].tool, "lsim");
     bool has_scene = false;
-    for (const auto& [k, v] : prov[1].parameters)
+    std::string kernel;
+    for (const auto& [k, v] : prov[1].parameters) {
         has_scene = has_scene || (k == "scene" && v.find("[probe]") != std::string::npos);
+        if (k == "spring_kernel")
+            kernel = v;
+    }
     EXPECT_TRUE(has_scene);
+    EXPECT_EQ(kernel, mss::simd_spring_kernel_available() ? "avx2" : "scalar"); // the scene leaves simd on
     EXPECT_NE(test::read_file(dir / "sim.xdmf").find("CollectionType=\"Temporal\""), std::string::npos);
     EXPECT_TRUE(fs::exists(dir / "pics" / "force.png"));
     EXPECT_TRUE(fs::exists(dir / "pics" / "frame_000.000s.png"));
@@ -222,6 +228,7 @@ TEST(Lsim, InstrumentSectionsRefuseBadValuesNamingTheLine)
         {"[refine]\nenabled = maybe\n", "bad.scene:2: 'enabled' is true or false"},
         {"[grasp]\njaws = 2\n", "bad.scene:2: unknown key 'jaws' in [grasp]"},
         {"[model]\nthreads = 1.5\n", "bad.scene:2: threads must be a whole number from 1 to 64"},
+        {"[model]\nsimd = yes\n", "bad.scene:2: 'simd' is true or false, got 'yes'"},
     };
     for (const auto& [text, message] : cases) {
         const fs::path scene = write_text(dir / "bad.scene", text);

@@ -227,6 +227,7 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
     io::Provenance prov = record.provenance();
     prov.timings.emplace_back("simulate", sim_seconds);
     prov.parameters.emplace_back("scene", scene.text);
+    prov.parameters.emplace_back("spring_kernel", scene.model.simd && mss::simd_spring_kernel_available() ? "avx2" : "scalar");
     prov.parameters.emplace_back("result.status", status);
     prov.parameters.emplace_back("result.steps", std::to_string(st.steps));
     out.write_provenance(prov);

@@ -139,9 +139,13 @@ public:
                     if (t != std::floor(t) || t > 64)
                         fail("threads must be a whole number from 1 to 64, got '" + value + "'");
                     m.threads = static_cast<int>(t);
+                } else if (key == "simd") {
+                    if (value != "true" && value != "false")
+                        fail("'simd' is true or false, got '" + value + "'");
+                    m.simd = value == "true";
                 } else
                     fail("unknown key '" + key + "' in [model] (formulation, poisson_ratio, stiffness, havp_c, volume_coefficient, reference_length, "
-                         "damping_ratio, mass_damping, gravity, threads)");
+                         "damping_ratio, mass_damping, gravity, threads, simd)");
             } else if (section == "tissues") {
                 if (key == "density")
                     density = positive(value, key);

@@ -48,6 +48,9 @@ const char* stiffness_name(Stiffness s);
 //! Inverse of stiffness_name. \throw core::InvalidInputError for another name
 Stiffness parse_stiffness(const std::string& name);
 
+//! Whether this CPU runs the spring pass's AVX2 + FMA kernel (ModelParams::simd).
+bool simd_spring_kernel_available();
+
 //! One tissue: the tet label it applies to and its material.
 struct TissueMaterial {
     std::int32_t label = 1;
@@ -97,6 +100,9 @@ struct ModelParams {
     //! threads took 0.70 ms per Van Gelder step of a 12 k-node liver against 0.65 ms, and 4.8-5.4
     //! against 7.4-8.2 ms at 106 k nodes (docs/benchmarks.md).
     int threads = 1;
+    //! Run the spring pass with the AVX2 + FMA kernel when the CPU has them (checked at run
+    //! time; the scalar loop otherwise). The forces agree with the scalar loop's to rounding.
+    bool simd = true;
 };
 
 //! Node positions and velocities; what an integrator advances. Node i of the state is vertex i
@@ -276,6 +282,9 @@ private:
     mutable bool gershgorin_stale_ = false; // after edits (the critical step is kept up to date)
     // Threaded spring pass: per thread, the forces it hands over (node, fx, fy, fz).
     mutable std::vector<std::vector<std::pair<std::int32_t, std::array<double, 3>>>> spill_;
+    // forces()' packed nodes (x y z 0 vx vy vz 0) and force records (x y z 0): scratch, so one
+    // forces() call at a time per model.
+    mutable std::vector<double> packed_, packed_f_;
 
     // Editing (enable_editing): per spring the sums its stiffness law needs over the tets around
     // its edge; edge and boundary-face tables keyed by packed vertex indices.

@@ -1,0 +1,45 @@
+// The spring pass of Model::forces on a packed node layout (docs/algorithms/mass_spring.md,
+// "The step's cost"): one 64-byte record per node, x y z 0 vx vy vz 0, so a spring's two ends
+// cost two cache lines and one vector load each for position and velocity; forces accumulate
+// as x y z 0 records of 32 bytes.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace lobe::mss::detail {
+
+//! The springs of Model::springs() as raw arrays, and the stiffness actually used (fem_k_ for
+//! the FEM formulations).
+struct SpringArrays {
+    const std::int32_t* a = nullptr;
+    const std::int32_t* b = nullptr;
+    const double* rest_length = nullptr;
+    const double* stiffness = nullptr;
+    const double* damping = nullptr;
+    std::size_t count = 0;
+};
+
+//! Sizes buf for n doubles starting on a 64-byte boundary and returns that start (the
+//! vector's own storage: it lives in the model, so its capacity is kept between steps).
+double* aligned64(std::vector<double>& buf, std::size_t n);
+
+//! Forces a pass hands to another thread's nodes: (node, force on it).
+using Spill = std::vector<std::pair<std::int32_t, std::array<double, 3>>>;
+
+//! Adds each spring k's elastic and damping force to f at a and (negated) at b, over springs
+//! [first, last), in spring order (so each node's sum is that of the plain loop), and returns
+//! sum k ext^2 over them. packed: 8 doubles per node; f: 4 doubles per node. Only nodes in
+//! [lo, hi) are written; a force on another node is appended to spill (the threaded pass; the
+//! serial one owns every node and passes no spill).
+//! simd: use the AVX2 + FMA kernel if the CPU has them (checked once), else the scalar loop.
+double spring_forces(const SpringArrays& s, std::size_t first, std::size_t last, const double* packed, double* f,
+                     std::int32_t lo, std::int32_t hi, Spill* spill, bool simd);
+
+//! Whether this CPU runs spring_forces' AVX2 kernel.
+bool cpu_has_simd_kernel();
+
+} // namespace lobe::mss::detail
