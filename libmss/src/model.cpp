@@ -2,7 +2,7 @@
 // (docs/algorithms/mass_spring.md).
 #include "lobe/mss/model.h"
 
-#include "detail/spring_kernel.h"
+#include "detail/force_kernels.h"
 #include "detail/tet_tables.h"
 #include "lobe/core/errors.h"
 
@@ -410,7 +410,7 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
 
     // The springs in their stored order (sorted by first node when built, so positions
     // stream; a flat list lets edits append and remove springs), on positions and velocities
-    // packed per node (detail/spring_kernel.h): the packing costs a pass over the nodes and
+    // packed per node (detail/force_kernels.h): the packing costs a pass over the nodes and
     // spares the spring pass most of its scattered loads.
     const std::size_t ns = springs_.size();
     const detail::SpringArrays arrays{springs_.a.data(),
@@ -456,11 +456,22 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
             F[3 * i + 2] = fp[4 * i + 2];
         }
     };
-    double e_gravity = 0, e_kinetic = 0;
+    // HAVP's volume terms (tet_kv_ is zero for the other laws and for the FEM, which would pay
+    // the pass for nothing).
+    const std::size_t nt = params_.formulation == Formulation::MassSpring && params_.stiffness == Stiffness::Havp &&
+                                   params_.volume_coefficient > 0
+                               ? mesh_.tets.size()
+                               : 0;
+    const auto volume = [&](std::size_t t0, std::size_t t1, std::int32_t lo, std::int32_t hi, detail::Spill* spill) {
+        return detail::volume_forces(mesh_.tets.data(), tet_v0_.data(), tet_kv_.data(), t0, t1, p, fp, lo, hi, spill,
+                                     params_.simd);
+    };
+    double e_gravity = 0, e_kinetic = 0, e_vol_sum = 0;
     const int threads = ns < kThreadedSprings ? 1 : std::max(1, params_.threads);
     if (threads == 1) {
         pack(0, n, e_gravity, e_kinetic);
         e_springs = detail::spring_forces(arrays, 0, ns, p, fp, 0, std::int32_t(n), nullptr, params_.simd);
+        e_vol_sum = volume(0, nt, 0, std::int32_t(n), nullptr);
         unpack(0, n);
     } else {
         // Thread t takes springs [ns t / T, ns (t + 1) / T) and owns the nodes [bound[t],
@@ -476,7 +487,7 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
         spill_.resize(std::size_t(threads));
         const auto shares = std::size_t(threads);
         double e_sum = 0;
-#pragma omp parallel num_threads(threads) reduction(+ : e_sum, e_gravity, e_kinetic)
+#pragma omp parallel num_threads(threads) reduction(+ : e_sum, e_gravity, e_kinetic, e_vol_sum)
         {
             // The runtime may give fewer threads than asked (OMP_THREAD_LIMIT, nesting): each one
             // then takes several shares, so every node and spring is still done once.
@@ -488,6 +499,9 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
                 spill_[t].clear();
                 e_sum += detail::spring_forces(arrays, ns * t / shares, ns * (t + 1) / shares, p, fp, bound[t],
                                                bound[t + 1], &spill_[t], params_.simd);
+                // The tets split the same way: lmesh sorts them by lowest node, so most of their
+                // writes fall on the thread's own nodes too.
+                e_vol_sum += volume(nt * t / shares, nt * (t + 1) / shares, bound[t], bound[t + 1], &spill_[t]);
             }
 #pragma omp barrier
             for (std::size_t t = first; t < shares; t += stride) {
@@ -503,46 +517,7 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
     }
     e_springs *= 0.5;
 
-    double e_volume = 0;
-    // HAVP's volume terms (tet_kv_ is zero for the other laws and for the FEM, which would pay
-    // the pass for nothing).
-    if (params_.formulation == Formulation::MassSpring && params_.stiffness == Stiffness::Havp &&
-        params_.volume_coefficient > 0) {
-        const std::size_t nt = mesh_.tets.size();
-        const std::int32_t* tq = mesh_.tets.data()->data();
-        const double* v0 = tet_v0_.data();
-        const double* kv = tet_kv_.data();
-        for (std::size_t t = 0; t < nt; ++t) {
-            const std::size_t i0 = 3 * std::size_t(tq[4 * t]), i1 = 3 * std::size_t(tq[4 * t + 1]),
-                              i2 = 3 * std::size_t(tq[4 * t + 2]), i3 = 3 * std::size_t(tq[4 * t + 3]);
-            const double e1x = x[i1] - x[i0], e1y = x[i1 + 1] - x[i0 + 1], e1z = x[i1 + 2] - x[i0 + 2];
-            const double e2x = x[i2] - x[i0], e2y = x[i2 + 1] - x[i0 + 1], e2z = x[i2 + 2] - x[i0 + 2];
-            const double e3x = x[i3] - x[i0], e3y = x[i3 + 1] - x[i0 + 1], e3z = x[i3 + 2] - x[i0 + 2];
-            // Gradients of V (the thesis's eq. 6.8 with its sign errors corrected): 6 grad_1 V =
-            // e2 x e3, 6 grad_2 V = e3 x e1, 6 grad_3 V = e1 x e2, and grad_0 V = -(their sum),
-            // so the four sum to zero by construction.
-            const double g1x = e2y * e3z - e2z * e3y, g1y = e2z * e3x - e2x * e3z, g1z = e2x * e3y - e2y * e3x;
-            const double g2x = e3y * e1z - e3z * e1y, g2y = e3z * e1x - e3x * e1z, g2z = e3x * e1y - e3y * e1x;
-            const double g3x = e1y * e2z - e1z * e2y, g3y = e1z * e2x - e1x * e2z, g3z = e1x * e2y - e1y * e2x;
-            const double vol = (e1x * g1x + e1y * g1y + e1z * g1z) / 6;
-            const double dv = vol - v0[t];
-            // E = k_V/2 ((V - V0)/V0)^2, so f_i = -(k_V / V0^2) (V - V0) grad_i V.
-            const double m = -kv[t] * dv / 6;
-            F[i1] += m * g1x;
-            F[i1 + 1] += m * g1y;
-            F[i1 + 2] += m * g1z;
-            F[i2] += m * g2x;
-            F[i2 + 1] += m * g2y;
-            F[i2 + 2] += m * g2z;
-            F[i3] += m * g3x;
-            F[i3 + 1] += m * g3y;
-            F[i3 + 2] += m * g3z;
-            F[i0] -= m * (g1x + g2x + g3x);
-            F[i0 + 1] -= m * (g1y + g2y + g3y);
-            F[i0 + 2] -= m * (g1z + g2z + g3z);
-            e_volume += 0.5 * kv[t] * dv * dv;
-        }
-    }
+    double e_volume = 0.5 * e_vol_sum;
 
     if (params_.formulation != Formulation::MassSpring) {
         const double nu = params_.poisson_ratio;

@@ -323,14 +323,14 @@ TEST(MssModel, TwoThreadSpringPassGivesTheSerialForces)
     compare(serial, threaded_scalar, s);
 }
 
-TEST(MssModel, SimdSpringPassGivesTheScalarForces)
+TEST(MssModel, SimdForcePassesGiveTheScalarForces)
 {
-    // The AVX2 kernel against the scalar loop on the same packed nodes: a 9^3-cell block with
-    // HAVP volume terms, gravity and mass damping, every node displaced by up to 0.3 mm and
-    // moving. Forces agree to 1e-12 of the largest (the same formula, the same summation order
-    // per node; only FMA contraction and the energy's four partial sums differ in rounding).
-    // Then after edge splits, which append springs out of order and leave a count that is not
-    // a multiple of the kernel's four.
+    // The AVX2 spring and volume kernels against the scalar loops on the same packed nodes: a
+    // 9^3-cell block with HAVP volume terms, gravity and mass damping, every node displaced by
+    // up to 0.3 mm and moving. Forces agree to 1e-12 of the largest (the same formulas, the same
+    // summation order per node; FMA contraction, products by 1/6 for divisions and the energy's
+    // four partial sums differ in rounding only). Then after edge splits, which append springs
+    // out of order and leave counts that are not multiples of the kernels' four.
     if (!mss::simd_spring_kernel_available())
         GTEST_SKIP() << "this CPU has no AVX2 + FMA: only the scalar loop runs here";
     mss::BlockMeshParams bp;
@@ -364,6 +364,8 @@ TEST(MssModel, SimdSpringPassGivesTheScalarForces)
         EXPECT_GT(big, 0);
         EXPECT_LE(diff, 1e-12 * big);
         EXPECT_NEAR(ea.springs, eb.springs, 1e-12 * ea.springs);
+        EXPECT_GT(ea.volume, 0);
+        EXPECT_NEAR(ea.volume, eb.volume, 1e-10 * ea.volume); // (V - V0)^2: V - V0 loses digits to V
         EXPECT_EQ(ea.kinetic, eb.kinetic);
         EXPECT_EQ(ea.gravity, eb.gravity);
     };

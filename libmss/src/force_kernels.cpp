@@ -1,11 +1,11 @@
-// The spring pass on packed nodes (detail/spring_kernel.h). The AVX2 kernel takes four springs
+// The spring pass on packed nodes (detail/force_kernels.h). The AVX2 kernel takes four springs
 // at a time: it loads each end's position and velocity records whole (no gathers, which this
 // CPU family does slowly), forms the differences as one row per spring, sums the rows' products
 // across into one lane per spring for the length and the closing speed, computes the four
 // magnitudes with vector sqrt and division, and adds each magnitude times its own row to the
 // spring's two nodes in spring order. docs/benchmarks.md ("Mass-spring step") measures it
 // against the scalar loop.
-#include "detail/spring_kernel.h"
+#include "detail/force_kernels.h"
 
 #include <cmath>
 #include <cstdint>
@@ -73,6 +73,44 @@ double spring_forces_scalar(const SpringArrays& s, std::size_t first, std::size_
     for (std::size_t k = first; k < last; ++k)
         e += spring_scalar(s, k, p, f, own);
     return e;
+}
+
+// Adds g to f[i] (or hands it over).
+inline void add_to(std::size_t i, double gx, double gy, double gz, double* f, const Owned& own)
+{
+    if (own.owns(i)) {
+        f[4 * i] += gx;
+        f[4 * i + 1] += gy;
+        f[4 * i + 2] += gz;
+    } else {
+        own.spill->push_back({std::int32_t(i), {gx, gy, gz}});
+    }
+}
+
+// One tet's volume term, in the formula of the thesis's eq. 6.8 with its sign errors corrected.
+inline double volume_scalar(const std::array<std::int32_t, 4>& q, double v0, double kv, const double* p, double* f,
+                            const Owned& own)
+{
+    const double* x0 = p + 8 * std::size_t(q[0]);
+    const double* x1 = p + 8 * std::size_t(q[1]);
+    const double* x2 = p + 8 * std::size_t(q[2]);
+    const double* x3 = p + 8 * std::size_t(q[3]);
+    const double e1x = x1[0] - x0[0], e1y = x1[1] - x0[1], e1z = x1[2] - x0[2];
+    const double e2x = x2[0] - x0[0], e2y = x2[1] - x0[1], e2z = x2[2] - x0[2];
+    const double e3x = x3[0] - x0[0], e3y = x3[1] - x0[1], e3z = x3[2] - x0[2];
+    // 6 grad_1 V = e2 x e3, 6 grad_2 V = e3 x e1, 6 grad_3 V = e1 x e2, and grad_0 V = -(their
+    // sum), so the four sum to zero by construction.
+    const double g1x = e2y * e3z - e2z * e3y, g1y = e2z * e3x - e2x * e3z, g1z = e2x * e3y - e2y * e3x;
+    const double g2x = e3y * e1z - e3z * e1y, g2y = e3z * e1x - e3x * e1z, g2z = e3x * e1y - e3y * e1x;
+    const double g3x = e1y * e2z - e1z * e2y, g3y = e1z * e2x - e1x * e2z, g3z = e1x * e2y - e1y * e2x;
+    const double dv = (e1x * g1x + e1y * g1y + e1z * g1z) / 6 - v0;
+    // E = k_V/2 ((V - V0)/V0)^2 with kv = k_V / V0^2, so f_i = -kv (V - V0) grad_i V.
+    const double m = -kv * dv / 6;
+    add_to(std::size_t(q[1]), m * g1x, m * g1y, m * g1z, f, own);
+    add_to(std::size_t(q[2]), m * g2x, m * g2y, m * g2z, f, own);
+    add_to(std::size_t(q[3]), m * g3x, m * g3y, m * g3z, f, own);
+    add_to(std::size_t(q[0]), -m * (g1x + g2x + g3x), -m * (g1y + g2y + g3y), -m * (g1z + g2z + g3z), f, own);
+    return kv * dv * dv;
 }
 
 #ifdef LOBE_SPRING_AVX2
@@ -160,6 +198,88 @@ __attribute__((target("avx2,fma"))) double spring_forces_avx2(const SpringArrays
     return e;
 }
 
+// f[i] += g (or hands it over).
+__attribute__((target("avx2,fma"), always_inline)) inline void add_row(__m256d g, std::size_t i, double* f,
+                                                                      const Owned& own)
+{
+    if (own.owns(i)) {
+        double* fi = f + 4 * i;
+        _mm256_store_pd(fi, _mm256_add_pd(_mm256_load_pd(fi), g));
+    } else {
+        alignas(32) double r[4];
+        _mm256_store_pd(r, g);
+        own.spill->push_back({std::int32_t(i), {r[0], r[1], r[2]}});
+    }
+}
+
+// a x b on x y z 0 rows: a.yzx b.zxy - a.zxy b.yzx (lane 3 stays 0).
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d cross_rows(__m256d a_yzx, __m256d a_zxy,
+                                                                            __m256d b_yzx, __m256d b_zxy)
+{
+    return _mm256_fmsub_pd(a_yzx, b_zxy, _mm256_mul_pd(a_zxy, b_yzx));
+}
+
+// One tet's edges and the three gradient rows 6 grad_{1,2,3} V.
+struct TetRows {
+    __m256d e1, g1, g2, g3;
+};
+
+__attribute__((target("avx2,fma"), always_inline)) inline TetRows tet_rows(const std::array<std::int32_t, 4>& q,
+                                                                          const double* p)
+{
+    const __m256d x0 = _mm256_load_pd(p + 8 * std::size_t(q[0]));
+    const __m256d e1 = _mm256_sub_pd(_mm256_load_pd(p + 8 * std::size_t(q[1])), x0);
+    const __m256d e2 = _mm256_sub_pd(_mm256_load_pd(p + 8 * std::size_t(q[2])), x0);
+    const __m256d e3 = _mm256_sub_pd(_mm256_load_pd(p + 8 * std::size_t(q[3])), x0);
+    constexpr int kYzx = 0xC9, kZxy = 0xD2; // lanes (1 2 0 3) and (2 0 1 3)
+    const __m256d e1a = _mm256_permute4x64_pd(e1, kYzx), e1b = _mm256_permute4x64_pd(e1, kZxy);
+    const __m256d e2a = _mm256_permute4x64_pd(e2, kYzx), e2b = _mm256_permute4x64_pd(e2, kZxy);
+    const __m256d e3a = _mm256_permute4x64_pd(e3, kYzx), e3b = _mm256_permute4x64_pd(e3, kZxy);
+    return {e1, cross_rows(e2a, e2b, e3a, e3b), cross_rows(e3a, e3b, e1a, e1b), cross_rows(e1a, e1b, e2a, e2b)};
+}
+
+__attribute__((target("avx2,fma"))) double volume_forces_avx2(const std::array<std::int32_t, 4>* tets,
+                                                                const double* rest_volume, const double* kv,
+                                                                std::size_t first, std::size_t last, const double* p,
+                                                                double* f, const Owned& own)
+{
+    // Four tets at a time: their 6 V as one lane each, then each tet's magnitude broadcast onto
+    // its own gradient rows.
+    __m256d energy = _mm256_setzero_pd();
+    std::size_t t = first;
+    for (; t + 4 <= last; t += 4) {
+        const TetRows r0 = tet_rows(tets[t], p), r1 = tet_rows(tets[t + 1], p), r2 = tet_rows(tets[t + 2], p),
+                      r3 = tet_rows(tets[t + 3], p);
+        const __m256d vol6 = sum_rows(_mm256_mul_pd(r0.e1, r0.g1), _mm256_mul_pd(r1.e1, r1.g1),
+                                      _mm256_mul_pd(r2.e1, r2.g1), _mm256_mul_pd(r3.e1, r3.g1));
+        // Products by 1/6, not divisions: the divider's latency sat on this chain (to rounding).
+        const __m256d sixth = _mm256_set1_pd(1.0 / 6);
+        const __m256d dv = _mm256_fmsub_pd(vol6, sixth, _mm256_loadu_pd(rest_volume + t));
+        const __m256d k = _mm256_loadu_pd(kv + t);
+        const __m256d m = _mm256_mul_pd(_mm256_mul_pd(k, dv), _mm256_set1_pd(-1.0 / 6));
+        energy = _mm256_fmadd_pd(_mm256_mul_pd(k, dv), dv, energy);
+        const TetRows* rows[4] = {&r0, &r1, &r2, &r3};
+        const __m256d mj[4] = {_mm256_permute4x64_pd(m, 0x00), _mm256_permute4x64_pd(m, 0x55),
+                               _mm256_permute4x64_pd(m, 0xAA), _mm256_permute4x64_pd(m, 0xFF)};
+        for (std::size_t j = 0; j < 4; ++j) {
+            const auto& q = tets[t + j];
+            const __m256d f1 = _mm256_mul_pd(mj[j], rows[j]->g1), f2 = _mm256_mul_pd(mj[j], rows[j]->g2),
+                          f3 = _mm256_mul_pd(mj[j], rows[j]->g3);
+            add_row(f1, std::size_t(q[1]), f, own);
+            add_row(f2, std::size_t(q[2]), f, own);
+            add_row(f3, std::size_t(q[3]), f, own);
+            add_row(_mm256_sub_pd(_mm256_setzero_pd(), _mm256_add_pd(_mm256_add_pd(f1, f2), f3)), std::size_t(q[0]), f,
+                    own);
+        }
+    }
+    alignas(32) double lanes[4];
+    _mm256_store_pd(lanes, energy);
+    double e = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+    for (; t < last; ++t)
+        e += volume_scalar(tets[t], rest_volume[t], kv[t], p, f, own);
+    return e;
+}
+
 bool cpu_has_avx2()
 {
     __builtin_cpu_init();
@@ -188,6 +308,21 @@ double spring_forces(const SpringArrays& s, std::size_t first, std::size_t last,
         return spring_forces_avx2(s, first, last, packed, f, own);
 #endif
     return spring_forces_scalar(s, first, last, packed, f, own);
+}
+
+double volume_forces(const std::array<std::int32_t, 4>* tets, const double* rest_volume, const double* kv,
+                     std::size_t first, std::size_t last, const double* packed, double* f, std::int32_t lo,
+                     std::int32_t hi, Spill* spill, bool simd)
+{
+    const Owned own{std::size_t(lo), std::size_t(hi) - std::size_t(lo), spill};
+#ifdef LOBE_SPRING_AVX2
+    if (simd && cpu_has_simd_kernel())
+        return volume_forces_avx2(tets, rest_volume, kv, first, last, packed, f, own);
+#endif
+    double e = 0;
+    for (std::size_t t = first; t < last; ++t)
+        e += volume_scalar(tets[t], rest_volume[t], kv[t], packed, f, own);
+    return e;
 }
 
 } // namespace lobe::mss::detail

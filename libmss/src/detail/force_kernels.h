@@ -1,4 +1,4 @@
-// The spring pass of Model::forces on a packed node layout (docs/algorithms/mass_spring.md,
+// The spring and HAVP volume passes of Model::forces on a packed node layout (docs/algorithms/mass_spring.md,
 // "The step's cost"): one 64-byte record per node, x y z 0 vx vy vz 0, so a spring's two ends
 // cost two cache lines and one vector load each for position and velocity; forces accumulate
 // as x y z 0 records of 32 bytes.
@@ -38,6 +38,13 @@ using Spill = std::vector<std::pair<std::int32_t, std::array<double, 3>>>;
 //! simd: use the AVX2 + FMA kernel if the CPU has them (checked once), else the scalar loop.
 double spring_forces(const SpringArrays& s, std::size_t first, std::size_t last, const double* packed, double* f,
                      std::int32_t lo, std::int32_t hi, Spill* spill, bool simd);
+
+//! HAVP's volume terms (Model::forces): tets [first, last), each adding f_i = -(k_V / 6)
+//! (V - V0) 6 grad_i V to its four nodes (second, third, fourth, then first node), the same
+//! ownership rule as spring_forces. Returns sum k_V (V - V0)^2 over them.
+double volume_forces(const std::array<std::int32_t, 4>* tets, const double* rest_volume, const double* kv,
+                     std::size_t first, std::size_t last, const double* packed, double* f, std::int32_t lo,
+                     std::int32_t hi, Spill* spill, bool simd);
 
 //! Whether this CPU runs spring_forces' AVX2 kernel.
 bool cpu_has_simd_kernel();
