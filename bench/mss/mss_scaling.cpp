@@ -4,7 +4,9 @@
 // on two threads against one. bench/mss/run.sh makes the meshes (lphantom + lmesh) and the chart.
 //
 //   mss_scaling OUT.csv MESH...       every configuration on every mesh
-//   mss_scaling --single MESH CONFIG STEPS   CONFIG's steps only (for `perf stat -r`)
+//   mss_scaling --single MESH CONFIG STEPS   CONFIG's steps only (for `perf stat -r`; prints
+//                                            the wall time per step; bench/mss/run_kernels.sh)
+// MSS_THREADS=n and MSS_SIMD=0|1 set ModelParams::threads and ::simd.
 // MESH: FILE.h5 (its /meshes/liver), FILE.h5+morton (the same, nodes renumbered along a Morton
 // curve: the order's effect on the spring loop's gathers), or cube:C (mss_bench's 100 mm cube
 // of C^3 cells, 6 tets each: the reference of the earlier figures, in the same run).
@@ -260,10 +262,12 @@ int single(const char* path, const char* config, long steps)
     for (const auto& c : kConfigs)
         if (std::strcmp(c.name, config) == 0) {
             mss::Simulator sim(make_model(mesh, c), sim_params(c));
+            const double t0 = wall_seconds();
             for (long i = 0; i < steps; ++i)
                 sim.step();
-            std::printf("%s %s: %ld steps, %zu nodes, %zu springs\n", path, config, steps, sim.model().node_count(),
-                        sim.model().springs().size());
+            const double seconds = wall_seconds() - t0;
+            std::printf("%s %s: %ld steps, %zu nodes, %zu springs, %.4f ms per step\n", path, config, steps,
+                        sim.model().node_count(), sim.model().springs().size(), 1e3 * seconds / double(std::max(1L, steps)));
             return 0;
         }
     std::fprintf(stderr, "unknown configuration %s\n", config);

@@ -33,8 +33,8 @@ using Spill = std::vector<std::pair<std::int32_t, std::array<double, 3>>>;
 //! Adds each spring k's elastic and damping force to f at a and (negated) at b, over springs
 //! [first, last), in spring order (so each node's sum is that of the plain loop), and returns
 //! sum k ext^2 over them. packed: 8 doubles per node; f: 4 doubles per node. Only nodes in
-//! [lo, hi) are written; a force on another node is appended to spill (the threaded pass; the
-//! serial one owns every node and passes no spill).
+//! [lo, hi) are written; a force on another node is appended to spill (the threaded pass). With
+//! no spill the pass owns every node (the serial pass: nothing is checked).
 //! simd: use the AVX2 + FMA kernel if the CPU has them (checked once), else the scalar loop.
 double spring_forces(const SpringArrays& s, std::size_t first, std::size_t last, const double* packed, double* f,
                      std::int32_t lo, std::int32_t hi, Spill* spill, bool simd);
