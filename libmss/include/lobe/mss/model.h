@@ -93,12 +93,14 @@ struct ModelParams {
     //! Mass-proportional (air) damping alpha [1/s]: f_i = -alpha m_i v_i.
     double mass_damping = 0;
     core::Vec3 gravity{0, 0, 0}; //!< [m/s^2], e.g. {0, 9.81, 0} for a supine patient in LPS
-    //! Threads of the spring pass (OpenMP). Each thread takes a contiguous share of the springs
-    //! and adds forces only to the nodes of its own index range, handing the few others to a
-    //! serial pass, so the sums do not depend on scheduling. 1 (the default) runs serially;
-    //! below 100 k springs (about 15 k nodes) the pass stays serial whatever this says: two
-    //! threads took 0.70 ms per Van Gelder step of a 12 k-node liver against 0.65 ms, and 4.8-5.4
-    //! against 7.4-8.2 ms at 106 k nodes (docs/benchmarks.md).
+    //! Threads of the force pass (OpenMP): packing, springs and HAVP's volume terms. Each
+    //! thread takes a contiguous share of the nodes, springs and tets and adds forces only to
+    //! the nodes of its own range, handing the few others over, so the sums do not depend on
+    //! scheduling. 1 (the default) runs serially; below 100 k springs (about 15 k nodes) the pass
+    //! stays serial whatever this says (the fork and joins cost more than a thread saves). With
+    //! the scalar loop two threads took 106 k nodes from 8.2 to 5.4 ms per Van Gelder step on a
+    //! quiet machine; OpenMP's barriers make them much slower when the other core is busy
+    //! (docs/benchmarks.md).
     int threads = 1;
     //! Run the spring pass with the AVX2 + FMA kernel when the CPU has them (checked at run
     //! time; the scalar loop otherwise). The forces agree with the scalar loop's to rounding.
