@@ -122,8 +122,10 @@ inline double volume_scalar(const std::array<std::int32_t, 4>& q, double v0, dou
 
 #ifdef LOBE_SPRING_AVX2
 // Adds a spring's force row g to f[a] and takes it from f[b]: 32-byte records, one load, add
-// and store each. (Keeping a run of one a's sum in a register instead, to spare the store and
-// reload between consecutive springs of the run, measured 5 % slower.)
+// and store each. Consecutive springs of one a chain through a store and its reload, and perf
+// blames those stores, yet sparing them measured slower both ways tried: a run's sum kept in a
+// register (5 %), and a segmented prefix sum over each block of four with one store per run
+// (8 %; docs/benchmarks.md).
 template <bool Check>
 __attribute__((target("avx2,fma"), always_inline)) inline void add_spring(__m256d g, std::size_t a, std::size_t b,
                                                                          double* f, const Owned<Check>& own)
