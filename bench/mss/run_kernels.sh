@@ -18,8 +18,8 @@ source "$repo/bench/mss/liver_meshes.sh"
 csv="$out/mss_kernels.csv"
 tmp="$csv.tmp"
 echo "mesh,nodes,springs,config,kernel,threads,ms_per_step" > "$tmp"
-# size:curvature factor:steps (about 1k, 12k, 40k and 107k nodes)
-for spec in "12:3:5000" "5:2:2000" "3:2:600" "2.2:2:300"; do
+# size:curvature factor:steps (about 1k, 10k, 12k, 47k and 107k nodes); SPECS overrides the list
+for spec in ${SPECS:-12:3:5000 5.3:2:2000 5:2:2000 3:2:600 2.2:2:300}; do
   IFS=: read -r size cf steps <<< "$spec"
   mesh="$(liver_mesh "$size" "$cf")"
   for config in symplectic/van-gelder symplectic/havp; do
