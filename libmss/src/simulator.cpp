@@ -528,8 +528,12 @@ struct Simulator::Impl {
         Energy e_next;
         double* x = next.x.data();
         double* v = next.v.data();
+        // The node passes share the force pass's threads on meshes large enough for them
+        // (ModelParams::threads; the same 100 k-spring threshold, about 15 k nodes).
+        const int team = model.springs().size() >= 100000 ? std::max(1, model.params().threads) : 1;
         switch (params.integrator) {
         case Integrator::SymplecticEuler:
+#pragma omp parallel for num_threads(team) if (team > 1) schedule(static)
             for (std::size_t i = 0; i < n; ++i) {
                 const double w = h * inv[i];
                 for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
@@ -600,6 +604,7 @@ struct Simulator::Impl {
         // Error estimate: dt^2/2 |a(t+h) - a(t)|, over free nodes the instruments did not move.
         // The same pass finds the fastest node for the blow-up check.
         double err = 0, vmax2 = 0;
+#pragma omp parallel for num_threads(team) if (team > 1) schedule(static) reduction(max : err, vmax2)
         for (std::size_t i = 0; i < n; ++i) {
             vmax2 = std::max(vmax2, v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
             if (inv[i] == 0 || (!touched.empty() && touched[i]))

@@ -414,3 +414,35 @@ TEST(MssSimulator, ProbeThatStartsInsideTheTissueIsRefused)
     touching.path = {{0, {20, 20, 50}}};
     EXPECT_EQ(sim.add_probe(touching), 0u);
 }
+
+TEST(MssSimulator, TwoThreadsStepLikeOne)
+{
+    // A 24^3-cell cube (6 tets per cell, about 105 k springs: above the 100 k threshold where
+    // the force pass and the node passes go to the threads) sagging under gravity with HAVP's
+    // volume terms: 20 explicit steps on two threads end where one thread ends, to 1e-9 of the
+    // largest displacement. Only the forces' rounding differs (each node's sum is taken in a
+    // fixed order, tested in MssModel.TwoThreadSpringPassGivesTheSerialForces), and 20 steps
+    // far below the critical step cannot amplify 1e-16 relative to 1e-9.
+    mss::ModelParams one, two;
+    one.gravity = two.gravity = {0, 0, -9.81};
+    two.threads = 2;
+    mss::SimulatorParams sp;
+    sp.time_step.policy = mss::StepPolicy::Critical;
+    mss::Simulator a(cube(24, one), sp), b(cube(24, two), sp);
+    ASSERT_GE(a.model().springs().size(), 100000u);
+    for (int i = 0; i < 20; ++i) {
+        a.step();
+        b.step();
+    }
+    const auto& xa = a.state().x;
+    const auto& xb = b.state().x;
+    const auto rest = a.model().rest_state().x;
+    double moved = 0, diff = 0;
+    for (std::size_t i = 0; i < xa.size(); ++i) {
+        moved = std::max(moved, std::abs(xa[i] - rest[i]));
+        diff = std::max(diff, std::abs(xa[i] - xb[i]));
+    }
+    EXPECT_GT(moved, 0);
+    EXPECT_LE(diff, 1e-9 * moved);
+    EXPECT_NEAR(a.state().time, b.state().time, 1e-15);
+}
