@@ -75,6 +75,7 @@ struct Row {
     double seconds = 0, min_dihedral = 0, combined_min = 0, combined_mean = 0, below = 0;
     std::size_t below_10deg = 0; // tets whose smallest dihedral angle is below 10 degrees
     double roi_below = -1; // % of the tets inside the region of interest below 0.3; -1: none
+    std::size_t roi_tets = 0, roi_low = 0;      // tets inside the ROI, and of them below 0.3
     double roi_worst = 0, roi_min_dihedral = 0; // worst combined and smallest dihedral angle [deg] there
     double improve_seconds = -1; // the ROI quality pass's share of `seconds`; -1: did not run
     std::string volumes;   // label:ratio;...
@@ -89,7 +90,8 @@ void print(const Row& r)
                 r.scene.c_str(), r.mesher.c_str(), r.config.c_str(), r.threads, r.tets, r.seconds, r.min_dihedral,
                 r.below_10deg, r.combined_min, r.combined_mean, r.below);
     if (r.roi_below >= 0)
-        std::printf(" (ROI %.1f%%, worst %.3f, dihedral >= %.2f)", r.roi_below, r.roi_worst, r.roi_min_dihedral);
+        std::printf(" (ROI %.1f%% = %zu of %zu, worst %.3f, dihedral >= %.2f)", r.roi_below, r.roi_low, r.roi_tets,
+                    r.roi_worst, r.roi_min_dihedral);
     if (r.improve_seconds >= 0)
         std::printf(" (improve %.2f s)", r.improve_seconds);
     std::printf("  volumes %s\n", r.volumes.c_str());
@@ -123,6 +125,8 @@ void fill_quality(Row& row, const core::TetMesh& m, const mesh::RegionOfInterest
             }
         }
         row.roi_below = in ? 100.0 * double(low) / double(in) : 0.0;
+        row.roi_tets = in;
+        row.roi_low = low;
     }
 }
 
@@ -139,8 +143,16 @@ mesh::MeshResult run_lobe(const std::string& scene, const core::LabelImage3D& la
     row.threads = r.threads;
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     fill_quality(row, r.mesh, &p.roi);
-    if (r.improvement.ran)
-        row.improve_seconds = r.improvement.seconds;
+    if (const auto& im = r.improvement; im.ran) {
+        row.improve_seconds = im.seconds;
+        std::printf("         ROI pass: below 0.3 %lld -> %lld (of which %lld with 4 vertices on surfaces, %lld with a face "
+                    "on one), worst %.3f -> %.3f; %lld 2-3 flips, %lld edge removals, %lld moves, %lld vertices inserted, %d rounds\n",
+                    static_cast<long long>(im.below_before), static_cast<long long>(im.below_after),
+                    static_cast<long long>(im.below_after_pinned), static_cast<long long>(im.below_after_surface_face),
+                    im.worst_before, im.worst_after, static_cast<long long>(im.flips23),
+                    static_cast<long long>(im.edge_removals), static_cast<long long>(im.vertex_moves),
+                    static_cast<long long>(im.vertices_inserted), im.rounds);
+    }
     for (const auto& t : r.tissues) {
         if (t.components == 0)
             continue; // a label dropped as specks

@@ -59,6 +59,7 @@ public:
     Work(const core::TetMesh& m, const ImproveParams& p) : pos(m.vertices), tets(m.tets), label(m.tet_labels)
     {
         qp.weight = p.weight;
+        target = kGoal;
         alive.assign(tets.size(), 1);
         q.resize(tets.size());
         star.resize(pos.size());
@@ -151,6 +152,17 @@ public:
     std::vector<std::int32_t> free_slots;        // dead tets' indices, reused so that an
                                                  // unchanged mesh keeps its tet order
     QualityParams qp;
+    double target = 0; // the 0.3
+    bool guard_count = true;
+
+    // How many of `qs` lie below 0.3: a change may not add to them.
+    template <class C>
+    int below(const C& qs) const
+    {
+        if (!guard_count)
+            return 0;
+        return static_cast<int>(std::count_if(qs.begin(), qs.end(), [&](double x) { return x < target; }));
+    }
 
 private:
     // A vertex is pinned when a face of its star lies on the outer boundary (one tet) or its
@@ -227,7 +239,8 @@ bool try_flip23(const Work& w, std::int32_t t, int i, Change& best)
         c.new_q.push_back(qn);
         c.new_min = std::min(c.new_min, qn);
     }
-    if (c.new_min > c.old_min + kMinGain && c.new_min > best.new_min) {
+    const std::array<double, 2> old_q{w.q[static_cast<std::size_t>(t)], w.q[static_cast<std::size_t>(u)]};
+    if (c.new_min > c.old_min + kMinGain && c.new_min > best.new_min && w.below(c.new_q) <= w.below(old_q)) {
         best = std::move(c);
         return true;
     }
@@ -329,6 +342,11 @@ bool try_edge_removal(const Work& w, std::int32_t a, std::int32_t b, Change& bes
         todo.push_back({i, k});
         todo.push_back({k, j});
     }
+    std::vector<double> old_q;
+    for (auto t : ring_tets)
+        old_q.push_back(w.q[static_cast<std::size_t>(t)]);
+    if (w.below(c.new_q) > w.below(old_q))
+        return false;
     best = std::move(c);
     return true;
 }
@@ -416,6 +434,7 @@ bool smooth_vertex(Work& w, std::int32_t v, int steps)
     std::vector<double> each;
     double f = star_min(w, v, x, &each);
     const double f0 = f;
+    const int below0 = w.below(each);
     double mean_edge = 0;
     Vec3 centre;
     int count = 0;
@@ -428,9 +447,13 @@ bool smooth_vertex(Work& w, std::int32_t v, int steps)
             }
     mean_edge /= count;
     centre /= count;
-    if (const double fc = star_min(w, v, centre); fc > f + kMinGain) {
-        x = centre;
-        f = star_min(w, v, x, &each);
+    {
+        std::vector<double> ec;
+        if (const double fc = star_min(w, v, centre, &ec); fc > f + kMinGain && w.below(ec) <= below0) {
+            x = centre;
+            f = fc;
+            each = std::move(ec);
+        }
     }
     const double h = 1e-4 * mean_edge;
     for (int step = 0; step < steps; ++step) {
@@ -449,7 +472,7 @@ bool smooth_vertex(Work& w, std::int32_t v, int steps)
             const Vec3 y = x + dir * alpha;
             std::vector<double> e2;
             const double fy = star_min(w, v, y, &e2);
-            if (fy > f + kMinGain) {
+            if (fy > f + kMinGain && w.below(e2) <= below0) {
                 x = y;
                 f = fy;
                 each = std::move(e2);
@@ -466,6 +489,159 @@ bool smooth_vertex(Work& w, std::int32_t v, int steps)
     for (auto t : s)
         w.q[static_cast<std::size_t>(t)] = w.quality(w.tets[static_cast<std::size_t>(t)]);
     return true;
+}
+
+// Vertex insertion (Klingner and Shewchuk 2007): the bad tet and its neighbours of the same
+// tissue across its faces form a cavity, which is replaced by the tets joining a new vertex to
+// the cavity's boundary faces; the vertex is then moved where the worst of them is best, and the
+// whole is undone unless that beats the cavity's worst. This is what fixes a tet whose four
+// vertices lie on surfaces when no flip does: e.g. a cap with two faces on a vessel's interface,
+// folded along their common edge (the tet's large dihedral angle), which the new vertex splits
+// into two tets of about half that angle each. The cavity's boundary keeps every surface face.
+bool try_insertion(Work& w, std::int32_t t, int steps)
+{
+    const auto tu = static_cast<std::size_t>(t);
+    const int lab = w.label[tu];
+    std::vector<std::int32_t> neighbours;
+    for (int i = 0; i < 4; ++i) {
+        std::array<std::int32_t, 3> f{};
+        for (int k = 0, n = 0; k < 4; ++k)
+            if (k != i)
+                f[static_cast<std::size_t>(n++)] = w.tets[tu][static_cast<std::size_t>(k)];
+        for (auto u : w.common(f))
+            if (u != t && w.label[static_cast<std::size_t>(u)] == lab)
+                neighbours.push_back(u);
+    }
+    // Every cavity of the bad tet and a non-empty subset of those neighbours (a point inside one
+    // tet only splits it, no better than the tet itself); the new vertex must see every boundary
+    // face of the cavity, which the smaller cavities allow more often. The best start wins.
+    std::vector<std::vector<std::int32_t>> cavities;
+    for (unsigned mask = 1; mask < (1u << neighbours.size()); ++mask) {
+        std::vector<std::int32_t> cav{t};
+        for (std::size_t k = 0; k < neighbours.size(); ++k)
+            if (mask & (1u << k))
+                cav.push_back(neighbours[k]);
+        cavities.push_back(cav);
+    }
+    // And the tets of the tissue two faces away: a larger cavity lets the new vertex sit further
+    // from the bad tet's surface faces.
+    if (!neighbours.empty()) {
+        auto cav = cavities.back();
+        for (auto u : neighbours)
+            for (int i = 0; i < 4; ++i) {
+                const auto& U = w.tets[static_cast<std::size_t>(u)];
+                std::array<std::int32_t, 3> f{};
+                for (int k = 0, n = 0; k < 4; ++k)
+                    if (k != i)
+                        f[static_cast<std::size_t>(n++)] = U[static_cast<std::size_t>(k)];
+                for (auto z : w.common(f))
+                    if (w.label[static_cast<std::size_t>(z)] == lab && std::find(cav.begin(), cav.end(), z) == cav.end())
+                        cav.push_back(z);
+            }
+        cavities.push_back(cav);
+    }
+    std::vector<std::int32_t> cavity;
+    std::vector<Tet> shells;
+    Vec3 x;
+    double best = 0; // the start must give positive tets
+    for (const auto& cav : cavities) {
+        auto in_cav = [&](std::int32_t u) { return std::find(cav.begin(), cav.end(), u) != cav.end(); };
+        // The cavity's boundary faces, as the tet with the vertex opposite the face replaced by
+        // the new one (-1): it keeps its orientation when the new vertex lies inside the cavity.
+        std::vector<Tet> sh;
+        for (auto c : cav)
+            for (int i = 0; i < 4; ++i) {
+                const auto& T = w.tets[static_cast<std::size_t>(c)];
+                std::array<std::int32_t, 3> f{};
+                for (int k = 0, n = 0; k < 4; ++k)
+                    if (k != i)
+                        f[static_cast<std::size_t>(n++)] = T[static_cast<std::size_t>(k)];
+                bool inner = false;
+                for (auto u : w.common(f))
+                    inner = inner || (u != c && in_cav(u));
+                if (!inner) {
+                    Tet n = T;
+                    n[static_cast<std::size_t>(i)] = -1;
+                    sh.push_back(n);
+                }
+            }
+        // Every vertex of the cavity must stay in a tet (none may lie inside the cavity).
+        bool ok = true;
+        for (auto c : cav)
+            for (auto v : w.tets[static_cast<std::size_t>(c)]) {
+                bool kept = false;
+                for (const auto& n : sh)
+                    kept = kept || std::find(n.begin(), n.end(), v) != n.end();
+                ok = ok && kept;
+            }
+        if (!ok)
+            continue;
+        auto worst_at = [&](const Vec3& y) {
+            double mn = std::numeric_limits<double>::infinity();
+            for (const auto& n : sh) {
+                std::array<Vec3, 4> q4;
+                for (std::size_t i = 0; i < 4; ++i)
+                    q4[i] = n[i] < 0 ? y : w.p(n[i]);
+                mn = std::min(mn, combined_measure(q4[0], q4[1], q4[2], q4[3], w.qp));
+            }
+            return mn;
+        };
+        // Starts: the centroid of each cavity tet, of the bad tet with each neighbour's centroid,
+        // and of the cavity's vertices.
+        std::vector<Vec3> starts;
+        Vec3 vc;
+        for (auto c : cav) {
+            starts.push_back(w.centroid(c));
+            starts.push_back((w.centroid(t) + w.centroid(c)) / 2);
+            vc += w.centroid(c);
+        }
+        starts.push_back(vc / static_cast<double>(cav.size()));
+        for (const auto& y : starts)
+            if (const double q = worst_at(y); q > best) {
+                best = q;
+                x = y;
+                cavity = cav;
+                shells = sh;
+            }
+    }
+    if (cavity.empty())
+        return false;
+    double old_min = std::numeric_limits<double>::infinity();
+    for (auto c : cavity)
+        old_min = std::min(old_min, w.q[static_cast<std::size_t>(c)]);
+    const auto v = static_cast<std::int32_t>(w.pos.size());
+    w.pos.push_back(x);
+    w.star.emplace_back();
+    w.pinned.push_back(0);
+    std::vector<std::pair<Tet, double>> old;
+    for (auto c : cavity) {
+        old.emplace_back(w.tets[static_cast<std::size_t>(c)], w.q[static_cast<std::size_t>(c)]);
+        w.kill(c);
+    }
+    for (auto n : shells) {
+        std::replace(n.begin(), n.end(), -1, v);
+        w.add(n, lab, w.quality(n));
+    }
+    smooth_vertex(w, v, 2 * steps);
+    double new_min = std::numeric_limits<double>::infinity();
+    for (auto u : w.star[static_cast<std::size_t>(v)])
+        new_min = std::min(new_min, w.q[static_cast<std::size_t>(u)]);
+    std::vector<double> new_q, old_q;
+    for (auto u : w.star[static_cast<std::size_t>(v)])
+        new_q.push_back(w.q[static_cast<std::size_t>(u)]);
+    for (const auto& o : old)
+        old_q.push_back(o.second);
+    if (new_min > old_min + kMinGain && w.below(new_q) <= w.below(old_q))
+        return true;
+    const auto made = w.star[static_cast<std::size_t>(v)];
+    for (auto u : made)
+        w.kill(u);
+    for (const auto& [T, q] : old)
+        w.add(T, lab, q);
+    w.pos.pop_back();
+    w.star.pop_back();
+    w.pinned.pop_back();
+    return false;
 }
 
 } // namespace
@@ -505,7 +681,12 @@ ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest&
         std::sort(bad.begin(), bad.end());
         return bad;
     };
-    for (int round = 0; round < params.max_rounds; ++round) {
+    // Rounds that may not add tets below 0.3, then (raise_worst_last) rounds that only raise the
+    // worst; a stage ends after max_rounds or a round without change.
+    const int stages = params.raise_worst_last ? 2 : 1;
+    for (int round = 0; round < stages * params.max_rounds; ++round) {
+        if (round == params.max_rounds)
+            w.guard_count = false;
         std::int64_t changes = 0;
         // Flips: for each bad tet still alive, the best of the 2-3 flips of its faces and the
         // removals of its edges.
@@ -539,11 +720,40 @@ ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest&
                     ++changes;
                 }
             }
+        // Vertex insertion for the tets still bad after flips and smoothing.
+        for (const auto& [qt, t] : bad_tets())
+            if (w.alive[static_cast<std::size_t>(t)] && w.q[static_cast<std::size_t>(t)] == qt &&
+                try_insertion(w, t, params.smoothing_steps)) {
+                ++st.vertices_inserted;
+                ++changes;
+            }
         st.rounds = round + 1;
-        if (changes == 0)
-            break;
+        if (changes == 0) {
+            if (!w.guard_count || stages == 1)
+                break;
+            round = params.max_rounds - 1; // the next round starts the second stage
+        }
     }
     tally(st.tets_in_region_after, st.below_after, st.worst_after);
+    // What is left, and why: a tet with its four vertices on surfaces cannot be smoothed, one
+    // with a face on a surface keeps that face whatever the flips.
+    for (std::size_t t = 0; t < w.tets.size(); ++t) {
+        if (!w.alive[t] || !(w.q[t] < kGoal) || !in_region(static_cast<std::int32_t>(t), 0))
+            continue;
+        const auto& T = w.tets[t];
+        st.below_after_pinned += std::all_of(T.begin(), T.end(), [&](auto v) { return w.pinned[static_cast<std::size_t>(v)] != 0; });
+        for (int i = 0; i < 4; ++i) {
+            std::array<std::int32_t, 3> f{};
+            for (int k = 0, n = 0; k < 4; ++k)
+                if (k != i)
+                    f[static_cast<std::size_t>(n++)] = T[static_cast<std::size_t>(k)];
+            const auto across = w.common(f);
+            if (across.size() == 1 || w.label[across[0]] != w.label[across[1]]) {
+                ++st.below_after_surface_face;
+                break;
+            }
+        }
+    }
     r.mesh = w.mesh();
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return r;

@@ -27,7 +27,12 @@ struct ImproveParams {
                               //!< issue's 0.3 so that the operations keep some margin
     double margin = 0;        //!< [mm] work on the tets whose centroid lies within this distance
                               //!< of the region of interest
-    int max_rounds = 8;       //!< rounds of (flips, smoothing); stops earlier when a round changes nothing
+    int max_rounds = 8;       //!< rounds of (flips, smoothing, insertion) per stage; a stage
+                              //!< ends earlier when a round changes nothing
+    bool raise_worst_last = true; //!< the first stage's changes must raise the worst tet they
+                              //!< replace without adding tets below 0.3; then a second stage
+                              //!< whose changes need only raise the worst (it may add a few
+                              //!< below 0.3: docs/algorithms/meshing.md)
     int smoothing_steps = 6;  //!< line-search steps per vertex and round
     double weight = 0.6;      //!< w of the combined measure (QualityParams::weight, thesis: 0.6)
 };
@@ -39,24 +44,30 @@ struct ImproveStats {
     std::int64_t tets_in_region_before = 0, tets_in_region_after = 0;
     std::int64_t below_before = 0, below_after = 0; //!< tets in the region with combined < 0.3
     double worst_before = 0, worst_after = 0;  //!< smallest combined measure in the region
+    std::int64_t below_after_pinned = 0;       //!< of below_after, tets whose four vertices all
+                                               //!< lie on surfaces (outer boundary, interfaces):
+                                               //!< only flips can change them
+    std::int64_t below_after_surface_face = 0; //!< of below_after, tets with a face on a surface
     std::int64_t flips23 = 0;                  //!< 2-3 flips done
     std::int64_t edge_removals = 0;            //!< edge removals done (3-2, 4-4, 5-6, ...)
     std::int64_t vertex_moves = 0;             //!< smoothing moves accepted
+    std::int64_t vertices_inserted = 0;        //!< vertices inserted inside a tissue
     int rounds = 0;                            //!< rounds run
     double seconds = 0;                        //!< wall clock
 };
 
 struct ImproveResult {
-    core::TetMesh mesh; //!< the improved mesh: the same vertices (those on surfaces unmoved) and
-                        //!< tissue sub-domains, positively oriented
+    core::TetMesh mesh; //!< the improved mesh: the input's vertices (those on surfaces unmoved),
+                        //!< then the inserted ones; the same tissue sub-domains; positively oriented
     ImproveStats stats;
 };
 
 //! Raises the worst combined measure (QualityParams' eq 6.16) of the tets of `mesh` inside
 //! `roi` (Kind::None = the whole mesh). A face between two tets of one tissue may be flipped
 //! (2-3), an edge all of whose tets belong to one tissue removed (n tets -> 2n-4), a vertex all
-//! of whose tets belong to one tissue and which is not on the outer boundary moved; faces on the
-//! outer boundary or between two tissues, and the vertices on them, never change. Every change
+//! of whose tets belong to one tissue and which is not on the outer boundary moved, a vertex
+//! inserted in a cavity of one tissue's tets; faces on the outer boundary or between two
+//! tissues, and the vertices on them, never change. Every change
 //! is accepted only if the smallest combined measure of the tets it replaces rises, so the
 //! region's worst tet never gets worse and every tet stays positively oriented.
 //! \pre core::mesh_problem(mesh) is empty. \throw core::InvalidInputError otherwise or for bad params.
