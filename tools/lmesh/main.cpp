@@ -156,6 +156,8 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
             param("result.improve.roi_tets", std::to_string(im.tets_in_region_after));
             param("result.improve.roi_below_0.3_before", std::to_string(im.below_before));
             param("result.improve.roi_below_0.3_after", std::to_string(im.below_after));
+            param("result.improve.roi_below_0.3_after_on_surfaces", std::to_string(im.below_after_pinned));
+            param("result.improve.vertices_inserted", std::to_string(im.vertices_inserted));
             param("result.improve.roi_min_combined_before", fixed(im.worst_before, 4));
             param("result.improve.roi_min_combined_after", fixed(im.worst_after, 4));
         }
