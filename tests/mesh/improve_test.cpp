@@ -86,8 +86,8 @@ TEST(CombinedMeasure, AloneEqualsTheFullEvaluation)
     // The pass evaluates the combined measure alone; it must be the report's value. Tolerance
     // 1e-12 relative: the same arithmetic in the same order, so equal up to the last bits.
     const std::array<std::array<Vec3, 4>, 3> tets{{{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}}},
-                                                    {{{0, 0, 0}, {2, 0, 0}, {1, 1.7, 0}, {1, 0.6, 0.1}}},
-                                                    {{{0, 0, 0}, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}}}}};
+                                                   {{{0, 0, 0}, {2, 0, 0}, {1, 1.7, 0}, {1, 0.6, 0.1}}},
+                                                   {{{0, 0, 0}, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}}}}};
     for (const auto& t : tets) {
         const double full = mesh::tet_measures(t[0], t[1], t[2], t[3], 1.0)[mesh::Measure::Combined];
         EXPECT_NEAR(mesh::combined_measure(t[0], t[1], t[2], t[3]), full, 1e-12 * std::abs(full));
@@ -214,8 +214,8 @@ TEST(ImproveQuality, MeshLabelsRunsItWithARegionOfInterest)
     // Serial CGAL runs repeat exactly, so both passes saw the same mesh.
     const auto [w_off, b_off] = region_quality(off.mesh, p.roi);
     const auto [w_on, b_on] = region_quality(on.mesh, p.roi);
-    std::printf("mesh_labels with a ROI: worst %.3f (%d below 0.3) without the pass, %.3f (%d) with it, %.3f s\n", w_off,
-                b_off, w_on, b_on, on.improvement.seconds);
+    std::printf("mesh_labels with a ROI: worst %.3f (%d below 0.3) without the pass, %.3f (%d) with it, %.3f s\n",
+                w_off, b_off, w_on, b_on, on.improvement.seconds);
     EXPECT_NEAR(on.improvement.worst_before, w_off, 1e-9);
     EXPECT_GE(w_on, w_off);
     EXPECT_LE(b_on, b_off);

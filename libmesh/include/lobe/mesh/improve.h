@@ -21,39 +21,39 @@ namespace lobe::mesh {
 //! Options of improve_quality (and of the pass mesh_labels runs when it is given a region of
 //! interest, MeshParams::improve).
 struct ImproveParams {
-    bool enabled = true;      //!< mesh_labels: run the pass when a region of interest is given
-                              //!< (never without one); improve_quality ignores it
-    double target = 0.4;      //!< combined measure below which a tet is worked on; above the
-                              //!< issue's 0.3 so that the operations keep some margin
-    double margin = 0;        //!< [mm] work on the tets whose centroid lies within this distance
-                              //!< of the region of interest
-    int max_rounds = 8;       //!< rounds of (flips, smoothing, insertion) per stage; a stage
-                              //!< ends earlier when a round changes nothing
+    bool enabled = true;          //!< mesh_labels: run the pass when a region of interest is given
+                                  //!< (never without one); improve_quality ignores it
+    double target = 0.4;          //!< combined measure below which a tet is worked on; above the
+                                  //!< issue's 0.3 so that the operations keep some margin
+    double margin = 0;            //!< [mm] work on the tets whose centroid lies within this distance
+                                  //!< of the region of interest
+    int max_rounds = 8;           //!< rounds of (flips, smoothing, insertion) per stage; a stage
+                                  //!< ends earlier when a round changes nothing
     bool raise_worst_last = true; //!< the first stage's changes must raise the worst tet they
-                              //!< replace without adding tets below 0.3; then a second stage
-                              //!< whose changes need only raise the worst (it may add a few
-                              //!< below 0.3: docs/algorithms/meshing.md)
-    int smoothing_steps = 6;  //!< line-search steps per vertex and round
-    double weight = 0.6;      //!< w of the combined measure (QualityParams::weight, thesis: 0.6)
+                                  //!< replace without adding tets below 0.3; then a second stage
+                                  //!< whose changes need only raise the worst (it may add a few
+                                  //!< below 0.3: docs/algorithms/meshing.md)
+    int smoothing_steps = 6;      //!< line-search steps per vertex and round
+    double weight = 0.6;          //!< w of the combined measure (QualityParams::weight, thesis: 0.6)
 };
 
 //! What improve_quality did. "In the region" counts the tets whose centroid lies in the region
 //! of interest (distance 0, not the margin), as the benchmark does.
 struct ImproveStats {
-    bool ran = false;                          //!< mesh_labels: whether the pass ran
+    bool ran = false; //!< mesh_labels: whether the pass ran
     std::int64_t tets_in_region_before = 0, tets_in_region_after = 0;
     std::int64_t below_before = 0, below_after = 0; //!< tets in the region with combined < 0.3
-    double worst_before = 0, worst_after = 0;  //!< smallest combined measure in the region
-    std::int64_t below_after_pinned = 0;       //!< of below_after, tets whose four vertices all
-                                               //!< lie on surfaces (outer boundary, interfaces):
-                                               //!< only flips can change them
-    std::int64_t below_after_surface_face = 0; //!< of below_after, tets with a face on a surface
-    std::int64_t flips23 = 0;                  //!< 2-3 flips done
-    std::int64_t edge_removals = 0;            //!< edge removals done (3-2, 4-4, 5-6, ...)
-    std::int64_t vertex_moves = 0;             //!< smoothing moves accepted
-    std::int64_t vertices_inserted = 0;        //!< vertices inserted inside a tissue
-    int rounds = 0;                            //!< rounds run
-    double seconds = 0;                        //!< wall clock
+    double worst_before = 0, worst_after = 0;       //!< smallest combined measure in the region
+    std::int64_t below_after_pinned = 0;            //!< of below_after, tets whose four vertices all
+                                                    //!< lie on surfaces (outer boundary, interfaces):
+                                                    //!< smoothing cannot move them
+    std::int64_t below_after_surface_face = 0;      //!< of below_after, tets with a face on a surface
+    std::int64_t flips23 = 0;                       //!< 2-3 flips done
+    std::int64_t edge_removals = 0;                 //!< edge removals done (3-2, 4-4, 5-6, ...)
+    std::int64_t vertex_moves = 0;                  //!< smoothing moves accepted
+    std::int64_t vertices_inserted = 0;             //!< vertices inserted inside a tissue
+    int rounds = 0;                                 //!< rounds run
+    double seconds = 0;                             //!< wall clock
 };
 
 struct ImproveResult {

@@ -15,10 +15,10 @@ namespace lobe::mesh {
 struct RegionOfInterest {
     enum class Kind { None, Box, Spheres };
     Kind kind = Kind::None;
-    core::Vec3 box_lo, box_hi;            //!< Box: corners [mm, physical space]
-    std::vector<core::Vec3> centres;      //!< Spheres: centres [mm, physical space]
-    double radius = 0;                    //!< Spheres: radius [mm]
-    double size = 0;                      //!< element size inside [mm]; 0 = MeshParams::size / 3
+    core::Vec3 box_lo, box_hi;       //!< Box: corners [mm, physical space]
+    std::vector<core::Vec3> centres; //!< Spheres: centres [mm, physical space]
+    double radius = 0;               //!< Spheres: radius [mm]
+    double size = 0;                 //!< element size inside [mm]; 0 = MeshParams::size / 3
 };
 
 //! Distance [mm] from physical point `p` to the region (0 inside; 0 everywhere for Kind::None,
