@@ -67,9 +67,10 @@ struct ImproveResult {
 //! (2-3), an edge all of whose tets belong to one tissue removed (n tets -> 2n-4), a vertex all
 //! of whose tets belong to one tissue and which is not on the outer boundary moved, a vertex
 //! inserted in a cavity of one tissue's tets; faces on the outer boundary or between two
-//! tissues, and the vertices on them, never change. Every change
-//! is accepted only if the smallest combined measure of the tets it replaces rises, so the
-//! region's worst tet never gets worse and every tet stays positively oriented.
+//! tissues, and the vertices on them, never change. Every change is accepted only if the
+//! smallest combined measure of the tets it replaces rises, so every tet stays positively
+//! oriented and the worst tet the pass touches never gets worse (the region's worst could only
+//! drop at its border, where a change started inside may replace a worse tet lying outside).
 //! \pre core::mesh_problem(mesh) is empty. \throw core::InvalidInputError otherwise or for bad params.
 ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest& roi, const ImproveParams& params = {});
 
