@@ -1,7 +1,7 @@
 // Meshing benchmark (issue 6): lobe's mesh_labels on CGAL's labelled liver (INRIMAGE) and on an
 // lphantom volume, against Debian's tetgen on the same surfaces, in one run; one line per run,
 // and optionally a CSV for the charts (bench/mesh/plot_mesh_bench.py). Results: docs/benchmarks.md.
-//   mesh_bench [--liver LIVER.inr.gz] [--csv OUT.csv] [--no-sweep]
+//   mesh_bench [--liver LIVER.inr.gz] [--csv OUT.csv] [--no-sweep] [--roi-only]
 //   (default liver: ../shared/data/liver-labels-inr/liver.inr.gz)
 #include "inrimage.h"
 #include "tetgen_peer.h"
@@ -75,6 +75,9 @@ struct Row {
     double seconds = 0, min_dihedral = 0, combined_min = 0, combined_mean = 0, below = 0;
     std::size_t below_10deg = 0; // tets whose smallest dihedral angle is below 10 degrees
     double roi_below = -1; // % of the tets inside the region of interest below 0.3; -1: none
+    std::size_t roi_tets = 0, roi_low = 0;      // tets inside the ROI, and of them below 0.3
+    double roi_worst = 0, roi_min_dihedral = 0; // worst combined and smallest dihedral angle [deg] there
+    double improve_seconds = -1; // the ROI quality pass's share of `seconds`; -1: did not run
     std::string volumes;   // label:ratio;...
 };
 
@@ -87,7 +90,10 @@ void print(const Row& r)
                 r.scene.c_str(), r.mesher.c_str(), r.config.c_str(), r.threads, r.tets, r.seconds, r.min_dihedral,
                 r.below_10deg, r.combined_min, r.combined_mean, r.below);
     if (r.roi_below >= 0)
-        std::printf(" (ROI %.1f%%)", r.roi_below);
+        std::printf(" (ROI %.1f%% = %zu of %zu, worst %.3f, dihedral >= %.2f)", r.roi_below, r.roi_low, r.roi_tets,
+                    r.roi_worst, r.roi_min_dihedral);
+    if (r.improve_seconds >= 0)
+        std::printf(" (improve %.2f s)", r.improve_seconds);
     std::printf("  volumes %s\n", r.volumes.c_str());
     std::fflush(stdout);
 }
@@ -106,15 +112,21 @@ void fill_quality(Row& row, const core::TetMesh& m, const mesh::RegionOfInterest
     if (roi && roi->kind == mesh::RegionOfInterest::Kind::Spheres) {
         const auto& per = q.per_tet[static_cast<int>(mesh::Measure::Combined)];
         std::size_t in = 0, low = 0;
+        row.roi_worst = 1e300;
+        row.roi_min_dihedral = 180;
         for (std::size_t t = 0; t < m.tets.size(); ++t) {
             const auto& c = m.tets[t];
             const core::Vec3 cen = (m.vertices[c[0]] + m.vertices[c[1]] + m.vertices[c[2]] + m.vertices[c[3]]) / 4;
             if (core::distance(cen, roi->centres[0]) <= roi->radius) {
                 ++in;
                 low += per[t] < 0.3;
+                row.roi_worst = std::min(row.roi_worst, per[t]);
+                row.roi_min_dihedral = std::min(row.roi_min_dihedral, q.min_dihedral_deg[t]);
             }
         }
         row.roi_below = in ? 100.0 * double(low) / double(in) : 0.0;
+        row.roi_tets = in;
+        row.roi_low = low;
     }
 }
 
@@ -131,6 +143,16 @@ mesh::MeshResult run_lobe(const std::string& scene, const core::LabelImage3D& la
     row.threads = r.threads;
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     fill_quality(row, r.mesh, &p.roi);
+    if (const auto& im = r.improvement; im.ran) {
+        row.improve_seconds = im.seconds;
+        std::printf("         ROI pass: below 0.3 %lld -> %lld (of which %lld with 4 vertices on surfaces, %lld with a face "
+                    "on one), worst %.3f -> %.3f; %lld 2-3 flips, %lld edge removals, %lld moves, %lld vertices inserted, %d rounds\n",
+                    static_cast<long long>(im.below_before), static_cast<long long>(im.below_after),
+                    static_cast<long long>(im.below_after_pinned), static_cast<long long>(im.below_after_surface_face),
+                    im.worst_before, im.worst_after, static_cast<long long>(im.flips23),
+                    static_cast<long long>(im.edge_removals), static_cast<long long>(im.vertex_moves),
+                    static_cast<long long>(im.vertices_inserted), im.rounds);
+    }
     for (const auto& t : r.tissues) {
         if (t.components == 0)
             continue; // a label dropped as specks
@@ -189,7 +211,7 @@ bool have_tetgen()
 int main(int argc, char** argv)
 {
     std::filesystem::path inr = LOBE_SOURCE_DIR "/../shared/data/liver-labels-inr/liver.inr.gz", csv;
-    bool sweep = true;
+    bool sweep = true, roi_only = false;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--liver") && i + 1 < argc)
             inr = argv[++i];
@@ -197,8 +219,11 @@ int main(int argc, char** argv)
             csv = argv[++i];
         else if (!std::strcmp(argv[i], "--no-sweep"))
             sweep = false;
-        else {
-            std::fprintf(stderr, "usage: mesh_bench [--liver LIVER.inr.gz] [--csv OUT.csv] [--no-sweep]\n");
+        else if (!std::strcmp(argv[i], "--roi-only")) {
+            roi_only = true;
+            sweep = false;
+        } else {
+            std::fprintf(stderr, "usage: mesh_bench [--liver LIVER.inr.gz] [--csv OUT.csv] [--no-sweep] [--roi-only]\n");
             return 1;
         }
     }
@@ -225,19 +250,24 @@ int main(int argc, char** argv)
         std::vector<mesh::TissueSize> sizes;
         int threads;
         bool roi, peer;
+        bool improve = true; // MeshParams::improve.enabled (acts only with a ROI)
     };
     const std::vector<mesh::TissueSize> small = {{2, 3}, {3, 3}, {4, 5}};
     const std::vector<Config> configs = {
         {"size 7.5, cf 2", 7.5, 2, {}, 2, false, false},
         {"size 10, vessels 3, tumours 5, cf 2", 10, 2, small, 2, false, false},
         {"size 10, vessels 3, tumours 5, cf 2", 10, 2, small, 1, false, true},
-        {"same, ROI r 15 mm size 2", 10, 2, small, 1, true, false},
+        {"same, ROI r 15 mm size 2, no ROI pass", 10, 2, small, 1, true, false, false},
+        {"same, ROI r 15 mm size 2", 10, 2, small, 1, true, false, true},
         {"size 10, vessels 3, tumours 5, cf 1", 10, 1, small, 2, false, false},
     };
     for (const auto& [scene, labels] : scenes) {
         const core::Vec3 centre = liver_centroid(labels);
         for (const auto& c : configs) {
+            if (roi_only && !c.roi)
+                continue;
             mesh::MeshParams p;
+            p.improve.enabled = c.improve;
             p.size = c.size;
             p.curvature_factor = c.cf;
             p.tissue_sizes = c.sizes;

@@ -244,6 +244,17 @@ const Normalisers& normalisers()
     return n;
 }
 
+// Eq 6.16 normalised by the regular tet's terms; g must not be flat.
+double combined_value(const Geometry& g, const QualityParams& params)
+{
+    const Normalisers& n = normalisers();
+    const CombinedTerms t = combined_terms(g, params.exact_lambda);
+    const CombinedTerms& reg = params.exact_lambda ? n.terms_exact : n.terms_estimate;
+    const double den =
+        params.weight * t.conditioning / reg.conditioning + (1 - params.weight) * t.interpolation / reg.interpolation;
+    return sign_of(g.volume) / (den * den);
+}
+
 } // namespace
 
 const char* measure_name(Measure m)
@@ -317,6 +328,12 @@ double fast_measure(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d)
     return raw / normalisers().regular.v[int(Measure::Fast)];
 }
 
+double combined_measure(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, const QualityParams& params)
+{
+    const Geometry g = geometry(a, b, c, d);
+    return g.flat ? 0.0 : combined_value(g, params);
+}
+
 TetMeasures tet_measures(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, double reference_edge,
                          const QualityParams& params)
 {
@@ -332,13 +349,8 @@ TetMeasures tet_measures(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3
     TetMeasures m;
     for (int i = 0; i < kMeasureCount; ++i)
         m.values[i] = n.regular.v[i] != 0 ? r.v[i] / n.regular.v[i] : 0;
-    if (!g.flat) {
-        const CombinedTerms t = combined_terms(g, params.exact_lambda);
-        const CombinedTerms& reg = params.exact_lambda ? n.terms_exact : n.terms_estimate;
-        const double den = params.weight * t.conditioning / reg.conditioning +
-                           (1 - params.weight) * t.interpolation / reg.interpolation;
-        m.values[int(Measure::Combined)] = sign_of(g.volume) / (den * den);
-    }
+    if (!g.flat)
+        m.values[int(Measure::Combined)] = combined_value(g, params);
     m.volume = g.volume;
     m.radius_edge_ratio = r.radius_edge;
     m.min_dihedral_deg = r.min_dihedral * 180 / kPi;

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <string>
 
 using namespace lobe;
@@ -165,4 +166,37 @@ TEST(Lmesh, RefusesBadInputWithoutWriting)
     EXPECT_EQ(r.exit_code, 2);
     EXPECT_NE(r.err.find("larger element size"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "mesh.h5"));
+}
+
+TEST(Lmesh, RegionOfInterestRunsTheQualityPassAndRecordsIt)
+{
+    // A ball ROI around the tumour: the pass runs by default and records what it did in the
+    // provenance and the report; --no-improve skips it. (--no-perturb: the test is about the
+    // record, and CGAL's perturber would take most of its time.)
+    const auto dir = test::scratch_dir();
+    io::write_image(dir / "labels.mhd", two_tissues());
+    const std::string common = q(dir / "labels.mhd") + " --size 4 --threads 1 --roi 3,0,0,5 --roi-size 2 --no-perturb";
+    auto r = lmesh(common + " -o " + q(dir / "on.h5") + " --report " + q(dir / "on.json"), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("ROI quality pass"), std::string::npos) << r.err;
+    std::map<std::string, std::string> params;
+    const auto prov_on = io::Hdf5Reader(dir / "on.h5").provenance();
+    for (const auto& [k, v] : prov_on.back().parameters)
+        params[k] = v;
+    EXPECT_EQ(params["improve-target"].empty(), false);
+    ASSERT_EQ(params.count("result.improve.seconds"), 1u);
+    // The pass never lowers the ROI's worst tet nor, in its first stage, adds tets below 0.3;
+    // the recorded values are rounded to 4 decimals.
+    EXPECT_GE(std::stod(params["result.improve.roi_min_combined_after"]),
+              std::stod(params["result.improve.roi_min_combined_before"]));
+    std::ifstream f(dir / "on.json");
+    const auto j = nlohmann::json::parse(f);
+    ASSERT_TRUE(j.contains("roi_improvement"));
+    EXPECT_GE(j["roi_improvement"]["roi_min_combined_after"].get<double>(),
+              j["roi_improvement"]["roi_min_combined_before"].get<double>());
+    r = lmesh(common + " --no-improve -o " + q(dir / "off.h5"), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto prov_off = io::Hdf5Reader(dir / "off.h5").provenance();
+    for (const auto& [k, v] : prov_off.back().parameters)
+        EXPECT_EQ(k.rfind("result.improve.", 0), std::string::npos) << k;
 }

@@ -29,7 +29,7 @@ struct Options {
     std::vector<std::string> tissue_sizes, tissue_distances;
     std::vector<double> roi, roi_box;
     double roi_size = 0;
-    bool no_perturb = false, no_exude = false, no_peel = false, no_repair = false;
+    bool no_perturb = false, no_exude = false, no_peel = false, no_repair = false, no_improve = false;
     int smooth = 10;
     mesh::MeshParams params;
 };
@@ -91,6 +91,7 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
     p.exude = !o.no_exude;
     p.peel_slivers = !o.no_peel;
     p.repair_manifold = !o.no_repair;
+    p.improve.enabled = !o.no_improve;
     p.progress = [&](const std::string& s) { progress.message(s); };
 
     const auto t0 = std::chrono::steady_clock::now();
@@ -144,6 +145,21 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
             param(k + ".mesh_volume_mm3", fixed(t.mesh_volume));
             param(k + ".tets", std::to_string(t.tets));
             param(k + ".pieces_meshed", std::to_string(t.components_meshed) + "/" + std::to_string(t.components));
+        }
+        if (const auto& im = res.improvement; im.ran) {
+            // The ROI quality pass runs inside "mesh"; its own time and outcome.
+            param("result.improve.seconds", fixed(im.seconds, 3));
+            param("result.improve.rounds", std::to_string(im.rounds));
+            param("result.improve.flips23", std::to_string(im.flips23));
+            param("result.improve.edge_removals", std::to_string(im.edge_removals));
+            param("result.improve.vertex_moves", std::to_string(im.vertex_moves));
+            param("result.improve.roi_tets", std::to_string(im.tets_in_region_after));
+            param("result.improve.roi_below_0.3_before", std::to_string(im.below_before));
+            param("result.improve.roi_below_0.3_after", std::to_string(im.below_after));
+            param("result.improve.roi_below_0.3_after_on_surfaces", std::to_string(im.below_after_pinned));
+            param("result.improve.vertices_inserted", std::to_string(im.vertices_inserted));
+            param("result.improve.roi_min_combined_before", fixed(im.worst_before, 4));
+            param("result.improve.roi_min_combined_after", fixed(im.worst_after, 4));
         }
         param("result.warnings", std::to_string(res.warnings.size()));
         std::vector<io::ElementArray> arrays;
@@ -263,6 +279,13 @@ int main(int argc, char** argv)
     app.add_flag("--no-exude", o.no_exude, "Skip CGAL's sliver exudation");
     app.add_flag("--no-peel", o.no_peel, "Keep the flat tets on the outer boundary (see docs/algorithms/meshing.md)");
     app.add_flag("--no-repair", o.no_repair, "Keep tissues that touch themselves along an edge or at a vertex");
+    app.add_flag("--no-improve", o.no_improve,
+                 "Skip the quality improvement on the combined measure inside the region of interest (flips and "
+                 "smoothing inside each tissue; runs only with --roi or --roi-box)");
+    app.add_option("--improve-target", p.improve.target,
+                   "Combined measure below which the region of interest's tets are worked on")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
     app.add_flag("--lloyd", p.lloyd, "Lloyd smoothing before perturb/exude (slow)");
     app.add_flag("--odt", p.odt, "ODT smoothing before perturb/exude (slow)");
     app.add_option("--threads", p.threads, "Threads (0 = all cores, CGAL parallel mode; 1 = serial, repeatable)")

@@ -52,6 +52,21 @@ nlohmann::json report_json(const Report& r)
                             {"volume_mm3", mr.volume}};
     j["slivers_peeled"] = {{"tets", res.peeled.tets}, {"volume_mm3", res.peeled.volume}};
     j["optimisation"] = res.optimisation;
+    if (const auto& im = res.improvement; im.ran)
+        j["roi_improvement"] = {{"seconds", im.seconds},
+                                {"rounds", im.rounds},
+                                {"flips23", im.flips23},
+                                {"edge_removals", im.edge_removals},
+                                {"vertex_moves", im.vertex_moves},
+                                {"vertices_inserted", im.vertices_inserted},
+                                {"roi_tets_before", im.tets_in_region_before},
+                                {"roi_tets_after", im.tets_in_region_after},
+                                {"roi_below_0.3_before", im.below_before},
+                                {"roi_below_0.3_after", im.below_after},
+                                {"roi_below_0.3_after_on_surfaces", im.below_after_pinned},
+                                {"roi_below_0.3_after_with_surface_face", im.below_after_surface_face},
+                                {"roi_min_combined_before", im.worst_before},
+                                {"roi_min_combined_after", im.worst_after}};
     for (const auto& t : res.tissues) {
         nlohmann::json tj{{"label", t.label},
                           {"name", name_of(r, t.label)},
@@ -100,7 +115,7 @@ std::string report_text(const Report& r)
 {
     const auto& res = *r.result;
     std::ostringstream os;
-    char buf[300];
+    char buf[400];
     std::snprintf(buf, sizeof buf, "lmesh %s: %zu tets, %zu vertices, element size %.2f mm, %d thread(s), %.2f s\n",
                   r.input.c_str(), res.mesh.tets.size(), res.mesh.vertices.size(), res.size, res.threads, r.seconds);
     os << buf;
@@ -119,6 +134,19 @@ std::string report_text(const Report& r)
         std::snprintf(buf, sizeof buf, "optimisation: %s; %lld boundary slivers peeled (%.1f mm^3)\n",
                       res.optimisation.empty() ? "none" : res.optimisation.c_str(), static_cast<long long>(res.peeled.tets),
                       res.peeled.volume);
+        os << buf;
+    }
+    if (const auto& im = res.improvement; im.ran) {
+        std::snprintf(buf, sizeof buf,
+                      "ROI quality pass: %lld of %lld tets below 0.3 (combined) before, %lld of %lld after (%lld with "
+                      "four vertices on surfaces); worst %.3f -> %.3f; %lld 2-3 flips, %lld edge removals, %lld vertex "
+                      "moves, %lld vertices inserted in %d rounds, %.2f s\n",
+                      static_cast<long long>(im.below_before), static_cast<long long>(im.tets_in_region_before),
+                      static_cast<long long>(im.below_after), static_cast<long long>(im.tets_in_region_after),
+                      static_cast<long long>(im.below_after_pinned), im.worst_before, im.worst_after,
+                      static_cast<long long>(im.flips23), static_cast<long long>(im.edge_removals),
+                      static_cast<long long>(im.vertex_moves), static_cast<long long>(im.vertices_inserted), im.rounds,
+                      im.seconds);
         os << buf;
     }
     for (const auto& w : res.warnings)

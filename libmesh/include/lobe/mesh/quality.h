@@ -73,6 +73,13 @@ TetMeasures tet_measures(const core::Vec3& a, const core::Vec3& b, const core::V
 //! on-the-fly refinement checks every new element with.
 double fast_measure(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d);
 
+//! The thesis's combined measure alone (eq 6.16, normalised: 1 for the regular tet, negative for
+//! an inverted one, 0 for a flat one), equal to tet_measures(...)[Measure::Combined] with the
+//! same params (only weight and exact_lambda matter) without the other measures' work: what the
+//! quality improvement pass (improve.h) evaluates for every candidate.
+double combined_measure(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c, const core::Vec3& d,
+                        const QualityParams& params = {});
+
 //! The six interior dihedral angles [radians] of tet (a, b, c, d), at edges ab, ac, ad, bc, bd, cd.
 std::array<double, 6> dihedral_angles(const core::Vec3& a, const core::Vec3& b, const core::Vec3& c,
                                       const core::Vec3& d);

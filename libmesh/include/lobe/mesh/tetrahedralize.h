@@ -7,6 +7,8 @@
 #include "lobe/core/image3d.h"
 #include "lobe/core/tet_mesh.h"
 #include "lobe/core/types.h"
+#include "lobe/mesh/improve.h"
+#include "lobe/mesh/region_of_interest.h"
 
 #include <cstdint>
 #include <functional>
@@ -21,18 +23,6 @@ struct TissueSize {
     double size = 0;           //!< [mm], as MeshParams::size; 0 = MeshParams::size
     double facet_distance = 0; //!< how far the tissue's boundary facets may lie from its label
                                //!< surface [mm]; 0 = the default (MeshParams::distance_per_size)
-};
-
-//! Region of interest: the mesh is fine (roi.size) inside and coarsens outside it with the
-//! distance d to the region as size(d) = roi.size + (grading - 1) d, capped by the tissue size,
-//! so that neighbouring elements differ by at most the grading factor.
-struct RegionOfInterest {
-    enum class Kind { None, Box, Spheres };
-    Kind kind = Kind::None;
-    core::Vec3 box_lo, box_hi;            //!< Box: corners [mm, physical space]
-    std::vector<core::Vec3> centres;      //!< Spheres: centres [mm, physical space]
-    double radius = 0;                    //!< Spheres: radius [mm]
-    double size = 0;                      //!< element size inside [mm]; 0 = MeshParams::size / 3
 };
 
 //! Options of mesh_labels. Sizes are CGAL's: a bound on the circumradius of the tets and on the
@@ -66,6 +56,9 @@ struct MeshParams {
     bool repair_manifold = true;          //!< relabel the few tets where a tissue (or the whole
                                           //!< mesh) touches itself along an edge or at a vertex,
                                           //!< so that every tissue surface is a manifold
+    ImproveParams improve;                //!< quality improvement on the combined measure inside
+                                          //!< the region of interest (improve.h): on by default,
+                                          //!< runs only when a region of interest is given
     bool spatial_order = true;            //!< number the vertices along a Hilbert curve (CGAL's
                                           //!< hilbert_sort) and the tets by their vertices, so
                                           //!< that neighbours sit close in memory: a mass-spring
@@ -124,6 +117,7 @@ struct MeshResult {
         std::int64_t tets = 0;
         double volume = 0; //!< [mm^3]
     } peeled;
+    ImproveStats improvement;               //!< MeshParams::improve (ran = false without a ROI)
     std::string optimisation;               //!< CGAL's perturber and exuder outcomes
     int threads = 1;                        //!< threads used
     std::vector<std::string> warnings;      //!< specks dropped, pieces not meshed, ...
