@@ -246,7 +246,16 @@ core::LabelImage3D liver_layer(const Context& c, const core::ImageF& smoothed)
     const KMeansResult km = kmeans_layers(smoothed, c.p.kmeans);
     LayerParams lp = c.p.layer;
     lp.min_sigma = std::max(lp.min_sigma, c.tissue.sigma);
-    return layer_mask(smoothed, km, c.tissue.mean, lp).mask;
+    LayerResult lr = layer_mask(smoothed, km, c.tissue.mean, lp);
+    // The layer nearest the liver's grey level is not always liver-like: below the liver's tip
+    // the window holds no liver, and the nearest layer is muscle and bowel (measured on the
+    // default phantom: centre 13-23 HU, band -24..70 HU, against the liver's 105 HU), which the
+    // propagation then followed for five slices under the liver. A layer whose acceptance band
+    // does not hold the liver's own grey level is not the liver: no liver-like tissue on this
+    // slice, and the liver ends here (the fixed band ends it on the same slice).
+    if (!(lr.low <= c.tissue.mean && c.tissue.mean <= lr.high))
+        std::fill(lr.mask.data.begin(), lr.mask.data.end(), std::uint8_t(0));
+    return std::move(lr.mask);
 }
 
 double area_of(const core::LabelImage3D& m)

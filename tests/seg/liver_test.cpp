@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -165,6 +166,27 @@ TEST(LiverPipeline, NoLiverBelowTheLiver)
     core::ImageF below(g);
     std::copy(c.hu.data.begin(), c.hu.data.begin() + static_cast<std::ptrdiff_t>(g.voxel_count()), below.data.begin());
     EXPECT_THROW(seg::segment_liver(below), seg::LiverNotFoundError);
+}
+
+// 0.8 x 0.8 x 2.5 mm, noise seed 13. Below the liver's tip the K-means layer nearest the liver's
+// grey level is muscle and bowel (centre about 20 HU, band up to about 70 HU): before the layer
+// had to hold the liver's grey level, the propagation followed it 4 slices below the tip (4 946
+// false voxels, first slice 8 against the truth's 12); measured after: first slice 13, no voxel
+// below the tip, Dice 0.908. The bound allows one slice of partial volume at the tip.
+TEST(LiverPipeline, StopsAtTheLiversTip)
+{
+    const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
+    int first = c.truth.size[2];
+    for (int k = 0; k < c.truth.size[2] && first == c.truth.size[2]; ++k) {
+        const core::LabelImage3D sl = core::axial_slice(c.truth, k);
+        if (std::any_of(sl.data.begin(), sl.data.end(), [](std::uint8_t v) { return v != 0; }))
+            first = k;
+    }
+    const seg::LiverResult r = seg::segment_liver(c.hu);
+    const auto m = seg::evaluate_segmentation(r.mask, c.truth);
+    std::cerr << "tip: first slice " << r.first_slice << " (truth " << first << "), Dice " << m.dice << "\n";
+    EXPECT_GE(r.first_slice, first - 1);
+    EXPECT_GE(m.dice, 0.88); // measured 0.908; the heart over the dome costs the rest
 }
 
 TEST(LiverPipeline, PropagationChecksItsSeed)
