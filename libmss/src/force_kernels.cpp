@@ -7,6 +7,7 @@
 // against the scalar loop.
 #include "detail/force_kernels.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -118,6 +119,43 @@ inline double volume_scalar(const std::array<std::int32_t, 4>& q, double v0, dou
     add_to(std::size_t(q[3]), m * g3x, m * g3y, m * g3z, f, own);
     add_to(std::size_t(q[0]), -m * (g1x + g2x + g3x), -m * (g1y + g2y + g3y), -m * (g1z + g2z + g3z), f, own);
     return kv * dv * dv;
+}
+
+NodeEnergies pack_nodes_scalar(const NodeArrays& n, std::size_t first, std::size_t last, double* p, double* f)
+{
+    const double gx = n.gravity[0], gy = n.gravity[1], gz = n.gravity[2], alpha = n.mass_damping;
+    NodeEnergies e;
+    for (std::size_t i = first; i < last; ++i) {
+        const double m = n.mass[i];
+        const double* xi = n.x + 3 * i;
+        const double* vi = n.v + 3 * i;
+        const double* ri = n.rest + 3 * i;
+        double* pi = p + 8 * i;
+        pi[0] = xi[0];
+        pi[1] = xi[1];
+        pi[2] = xi[2];
+        pi[3] = 0;
+        pi[4] = vi[0];
+        pi[5] = vi[1];
+        pi[6] = vi[2];
+        pi[7] = 0;
+        f[4 * i] = m * (gx - alpha * vi[0]);
+        f[4 * i + 1] = m * (gy - alpha * vi[1]);
+        f[4 * i + 2] = m * (gz - alpha * vi[2]);
+        f[4 * i + 3] = 0;
+        e.gravity -= m * (gx * (xi[0] - ri[0]) + gy * (xi[1] - ri[1]) + gz * (xi[2] - ri[2]));
+        e.kinetic += 0.5 * m * (vi[0] * vi[0] + vi[1] * vi[1] + vi[2] * vi[2]);
+    }
+    return e;
+}
+
+void unpack_forces_scalar(const double* f, std::size_t first, std::size_t last, double* out)
+{
+    for (std::size_t i = first; i < last; ++i) {
+        out[3 * i] = f[4 * i];
+        out[3 * i + 1] = f[4 * i + 1];
+        out[3 * i + 2] = f[4 * i + 2];
+    }
 }
 
 #ifdef LOBE_SPRING_AVX2
@@ -293,6 +331,50 @@ __attribute__((target("avx2,fma"))) double volume_forces_avx2(const std::array<s
     return e;
 }
 
+// Packing with 4-double loads of each node's x y z (the fourth lane, the next node's x, is
+// zeroed): the scalar loop's energy sums chain every node through two additions, these keep
+// four lanes. The last node of the arrays is done by the scalar loop (its load would run past
+// the end).
+__attribute__((target("avx2,fma"))) NodeEnergies pack_nodes_avx2(const NodeArrays& n, std::size_t first,
+                                                                 std::size_t last, double* p, double* f)
+{
+    const std::size_t vec_last = std::min(last, n.count - 1);
+    const __m256d g = _mm256_setr_pd(n.gravity[0], n.gravity[1], n.gravity[2], 0);
+    const __m256d alpha = _mm256_set1_pd(n.mass_damping);
+    const __m256d zero = _mm256_setzero_pd();
+    __m256d eg = zero, ek = zero;
+    std::size_t i = first;
+    for (; i < vec_last; ++i) {
+        const __m256d m = _mm256_set1_pd(n.mass[i]);
+        const __m256d xi = _mm256_blend_pd(_mm256_loadu_pd(n.x + 3 * i), zero, 0b1000);
+        const __m256d vi = _mm256_blend_pd(_mm256_loadu_pd(n.v + 3 * i), zero, 0b1000);
+        const __m256d ri = _mm256_blend_pd(_mm256_loadu_pd(n.rest + 3 * i), zero, 0b1000);
+        _mm256_store_pd(p + 8 * i, xi);
+        _mm256_store_pd(p + 8 * i + 4, vi);
+        _mm256_store_pd(f + 4 * i, _mm256_mul_pd(m, _mm256_fnmadd_pd(alpha, vi, g)));
+        eg = _mm256_fnmadd_pd(_mm256_mul_pd(m, g), _mm256_sub_pd(xi, ri), eg);
+        ek = _mm256_fmadd_pd(_mm256_mul_pd(m, vi), vi, ek);
+    }
+    alignas(32) double lg[4], lk[4];
+    _mm256_store_pd(lg, eg);
+    _mm256_store_pd(lk, ek);
+    NodeEnergies e = pack_nodes_scalar(n, i, last, p, f);
+    e.gravity += (lg[0] + lg[1]) + (lg[2] + lg[3]);
+    e.kinetic += 0.5 * ((lk[0] + lk[1]) + (lk[2] + lk[3]));
+    return e;
+}
+
+// Unpacking with 4-double stores: node i's store also writes 0 over node i + 1's x, which
+// node i + 1's store then overwrites, so the range's last node is done alone.
+__attribute__((target("avx2,fma"))) void unpack_forces_avx2(const double* f, std::size_t first, std::size_t last,
+                                                             double* out)
+{
+    std::size_t i = first;
+    for (; i + 1 < last; ++i)
+        _mm256_storeu_pd(out + 3 * i, _mm256_load_pd(f + 4 * i));
+    unpack_forces_scalar(f, i, last, out);
+}
+
 bool cpu_has_avx2()
 {
     __builtin_cpu_init();
@@ -361,6 +443,25 @@ double volume_forces(const std::array<std::int32_t, 4>* tets, const double* rest
                                simd);
     return volume_dispatch(tets, rest_volume, kv, first, last, packed, f, Owned<true>{std::size_t(lo), span, spill},
                            simd);
+}
+
+NodeEnergies pack_nodes(const NodeArrays& nodes, std::size_t first, std::size_t last, double* packed, double* f,
+                        bool simd)
+{
+#ifdef LOBE_SPRING_AVX2
+    if (simd && cpu_has_simd_kernel())
+        return pack_nodes_avx2(nodes, first, last, packed, f);
+#endif
+    return pack_nodes_scalar(nodes, first, last, packed, f);
+}
+
+void unpack_forces(const double* f, std::size_t first, std::size_t last, double* out, bool simd)
+{
+#ifdef LOBE_SPRING_AVX2
+    if (simd && cpu_has_simd_kernel())
+        return unpack_forces_avx2(f, first, last, out);
+#endif
+    unpack_forces_scalar(f, first, last, out);
 }
 
 } // namespace lobe::mss::detail

@@ -422,40 +422,24 @@ void Model::forces(const State& s, std::vector<double>& f, Energy* energy) const
                                       ns};
     double* p = detail::aligned64(packed_, 8 * n);
     double* fp = detail::aligned64(packed_f_, 4 * n);
-    // Packs nodes [i0, i1) and starts their force sums with gravity and mass damping; the same
-    // pass takes their kinetic and gravitational energies.
-    const double gx = params_.gravity.x, gy = params_.gravity.y, gz = params_.gravity.z;
-    const double alpha = params_.mass_damping;
+    // Packing starts each node's force sum with gravity and mass damping and takes the kinetic
+    // and gravitational energies on the way.
+    detail::NodeArrays nodes;
+    nodes.x = x;
+    nodes.v = v;
+    nodes.mass = mass_.data();
+    nodes.rest = rest_.data();
+    nodes.gravity[0] = params_.gravity.x;
+    nodes.gravity[1] = params_.gravity.y;
+    nodes.gravity[2] = params_.gravity.z;
+    nodes.mass_damping = params_.mass_damping;
+    nodes.count = n;
     auto pack = [&](std::size_t i0, std::size_t i1, double& e_gravity, double& e_kinetic) {
-        for (std::size_t i = i0; i < i1; ++i) {
-            const double m = mass_[i];
-            const double* xi = x + 3 * i;
-            const double* vi = v + 3 * i;
-            double* pi = p + 8 * i;
-            pi[0] = xi[0];
-            pi[1] = xi[1];
-            pi[2] = xi[2];
-            pi[3] = 0;
-            pi[4] = vi[0];
-            pi[5] = vi[1];
-            pi[6] = vi[2];
-            pi[7] = 0;
-            fp[4 * i] = m * (gx - alpha * vi[0]);
-            fp[4 * i + 1] = m * (gy - alpha * vi[1]);
-            fp[4 * i + 2] = m * (gz - alpha * vi[2]);
-            fp[4 * i + 3] = 0;
-            e_gravity -= m * (gx * (xi[0] - rest_[3 * i]) + gy * (xi[1] - rest_[3 * i + 1]) +
-                              gz * (xi[2] - rest_[3 * i + 2]));
-            e_kinetic += 0.5 * m * (vi[0] * vi[0] + vi[1] * vi[1] + vi[2] * vi[2]);
-        }
+        const detail::NodeEnergies e = detail::pack_nodes(nodes, i0, i1, p, fp, params_.simd);
+        e_gravity += e.gravity;
+        e_kinetic += e.kinetic;
     };
-    auto unpack = [&](std::size_t i0, std::size_t i1) {
-        for (std::size_t i = i0; i < i1; ++i) {
-            F[3 * i] = fp[4 * i];
-            F[3 * i + 1] = fp[4 * i + 1];
-            F[3 * i + 2] = fp[4 * i + 2];
-        }
-    };
+    auto unpack = [&](std::size_t i0, std::size_t i1) { detail::unpack_forces(fp, i0, i1, F, params_.simd); };
     // HAVP's volume terms (tet_kv_ is zero for the other laws and for the FEM, which would pay
     // the pass for nothing).
     const std::size_t nt = params_.formulation == Formulation::MassSpring && params_.stiffness == Stiffness::Havp &&

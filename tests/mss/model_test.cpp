@@ -359,7 +359,12 @@ TEST(MssModel, SimdForcePassesGiveTheScalarForces)
         x += 0.3e-3 * u(rng);
     for (auto& v : s.v)
         v = 0.01 * u(rng);
-    EXPECT_GT(fast.energy(s).volume, 0); // the volume kernel has work to do
+    const mss::Energy ef = fast.energy(s), ep = plain.energy(s);
+    EXPECT_GT(ef.volume, 0); // the volume kernel has work to do
+    // The packing pass's energies: four lanes against one running sum, rounding only.
+    EXPECT_NEAR(ef.kinetic, ep.kinetic, 1e-12 * ep.kinetic);
+    EXPECT_NEAR(ef.gravity, ep.gravity, 1e-9 * std::abs(ep.gravity)); // a sum of +- terms
+    EXPECT_NE(ep.gravity, 0);
     expect_same_forces(fast, plain, s);
     mss::State s2 = s;
     for (int i = 0; i < 7; ++i) {

@@ -46,6 +46,31 @@ double volume_forces(const std::array<std::int32_t, 4>* tets, const double* rest
                      std::size_t first, std::size_t last, const double* packed, double* f, std::int32_t lo,
                      std::int32_t hi, Spill* spill, bool simd);
 
+//! The per-node inputs of the packing pass.
+struct NodeArrays {
+    const double* x = nullptr;    //!< positions, x y z per node
+    const double* v = nullptr;    //!< velocities
+    const double* mass = nullptr; //!< lumped masses
+    const double* rest = nullptr; //!< rest positions (the gravitational energy's zero)
+    double gravity[3] = {0, 0, 0};
+    double mass_damping = 0;
+    std::size_t count = 0; //!< nodes in all (loads past a range's end stay inside the arrays)
+};
+
+//! Energies the packing pass takes on the way [J].
+struct NodeEnergies {
+    double gravity = 0, kinetic = 0;
+};
+
+//! Packs nodes [first, last): packed gets x y z 0 vx vy vz 0, f starts each node's sum with
+//! m (g - alpha v), x y z 0. Returns their gravitational and kinetic energies.
+NodeEnergies pack_nodes(const NodeArrays& nodes, std::size_t first, std::size_t last, double* packed, double* f,
+                        bool simd);
+
+//! Copies the force records of nodes [first, last) into out, x y z per node. Writes nothing
+//! outside those nodes (ranges of different threads may meet).
+void unpack_forces(const double* f, std::size_t first, std::size_t last, double* out, bool simd);
+
 //! Whether this CPU runs spring_forces' AVX2 kernel.
 bool cpu_has_simd_kernel();
 
