@@ -97,10 +97,10 @@ struct ModelParams {
     //! thread takes a contiguous share of the nodes, springs and tets and adds forces only to
     //! the nodes of its own range, handing the few others over, so the sums do not depend on
     //! scheduling. 1 (the default) runs serially; below 100 k springs (about 15 k nodes) the pass
-    //! stays serial whatever this says (the fork and joins cost more than a thread saves). With
-    //! the scalar loop two threads took 106 k nodes from 8.2 to 5.4 ms per Van Gelder step on a
-    //! quiet machine; OpenMP's barriers make them much slower when the other core is busy
-    //! (docs/benchmarks.md).
+    //! stays serial whatever this says (the fork and joins cost more than a thread saves). Two
+    //! threads took a 107 k-node liver's Van Gelder step from 5.4 to 3.0 ms on a quiet machine;
+    //! OpenMP's barriers make them much slower when the other core is busy (docs/benchmarks.md,
+    //! "Kernels"; OMP_WAIT_POLICY=passive helps there).
     int threads = 1;
     //! Run the spring pass with the AVX2 + FMA kernel when the CPU has them (checked at run
     //! time; the scalar loop otherwise). The forces agree with the scalar loop's to rounding.
