@@ -4,7 +4,7 @@
 # the phantom's liver meshes, in one run. Needs build/tools (lphantom, lmesh) and the bench
 # build's mss_scaling:
 #   cmake --preset bench && cmake --build --preset bench --target mss_scaling
-#   bash bench/mss/run_kernels.sh   -> docs/benchmarks/mss_kernels.csv
+#   bash bench/mss/run_kernels.sh   -> docs/benchmarks/mss_kernels.{csv,png}
 # Each row: the least wall time per step over REPEAT (default 3) runs of STEPS steps (default:
 # 5000 to 300 by mesh size). MESHES=dir keeps the meshes (bench/mss/liver_meshes.sh).
 set -euo pipefail
@@ -39,3 +39,4 @@ for spec in ${SPECS:-12:3:5000 5.3:2:2000 5:2:2000 3:2:600 2.2:2:300}; do
   done
 done
 mv "$tmp" "$csv"
+/usr/bin/python3 "$repo/bench/mss/plot_kernels.py" "$csv" "$out/mss_kernels.png"
