@@ -338,7 +338,7 @@ __attribute__((target("avx2,fma"))) double volume_forces_avx2(const std::array<s
 __attribute__((target("avx2,fma"))) NodeEnergies pack_nodes_avx2(const NodeArrays& n, std::size_t first,
                                                                  std::size_t last, double* p, double* f)
 {
-    const std::size_t vec_last = std::min(last, n.count - 1);
+    const std::size_t vec_last = std::min(last, n.count > 0 ? n.count - 1 : 0);
     const __m256d g = _mm256_setr_pd(n.gravity[0], n.gravity[1], n.gravity[2], 0);
     const __m256d alpha = _mm256_set1_pd(n.mass_damping);
     const __m256d zero = _mm256_setzero_pd();
