@@ -1,10 +1,11 @@
-// The spring pass on packed nodes (detail/force_kernels.h). The AVX2 kernel takes four springs
-// at a time: it loads each end's position and velocity records whole (no gathers, which this
-// CPU family does slowly), forms the differences as one row per spring, sums the rows' products
-// across into one lane per spring for the length and the closing speed, computes the four
-// magnitudes with vector sqrt and division, and adds each magnitude times its own row to the
-// spring's two nodes in spring order. docs/benchmarks.md ("Mass-spring step") measures it
-// against the scalar loop.
+// The force pass's kernels on packed nodes (detail/force_kernels.h): packing, springs, HAVP's
+// volume terms, unpacking, each as an AVX2 + FMA kernel and a scalar loop. The spring kernel
+// takes four springs at a time: it loads each end's position and velocity records whole (no
+// gathers, which this CPU family does slowly), forms the differences as one row per spring,
+// sums the rows' products across into one lane per spring for the length and the closing
+// speed, computes the four magnitudes with vector sqrt and division, and adds each magnitude
+// times its own row to the spring's two nodes in spring order. The volume kernel does the same
+// for four tets. docs/benchmarks.md ("Kernels") measures them against the scalar loops.
 #include "detail/force_kernels.h"
 
 #include <algorithm>
@@ -13,7 +14,7 @@
 #include <cstdlib>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define LOBE_SPRING_AVX2 1
+#define LOBE_FORCE_AVX2 1
 #include <immintrin.h>
 #endif
 
@@ -31,8 +32,7 @@ namespace {
 // Which nodes a pass may write: [lo, hi), the rest go to the spill.
 // Check = false for the serial pass, which owns every node: the two compares and branches per
 // spring measured 15 % of the serial step.
-template <bool Check>
-struct Owned {
+template <bool Check> struct Owned {
     std::size_t lo, span;
     Spill* spill;
     bool owns(std::size_t i) const { return !Check || i - lo < span; } // unsigned: below lo wraps round
@@ -158,7 +158,7 @@ void unpack_forces_scalar(const double* f, std::size_t first, std::size_t last, 
     }
 }
 
-#ifdef LOBE_SPRING_AVX2
+#ifdef LOBE_FORCE_AVX2
 // Adds a spring's force row g to f[a] and takes it from f[b]: 32-byte records, one load, add
 // and store each. Consecutive springs of one a chain through a store and its reload, and perf
 // blames those stores, yet sparing them measured slower both ways tried: a run's sum kept in a
@@ -166,7 +166,7 @@ void unpack_forces_scalar(const double* f, std::size_t first, std::size_t last, 
 // (8 %; docs/benchmarks.md).
 template <bool Check>
 __attribute__((target("avx2,fma"), always_inline)) inline void add_spring(__m256d g, std::size_t a, std::size_t b,
-                                                                         double* f, const Owned<Check>& own)
+                                                                          double* f, const Owned<Check>& own)
 {
     if (own.owns(a)) {
         double* fa = f + 4 * a;
@@ -187,7 +187,8 @@ __attribute__((target("avx2,fma"), always_inline)) inline void add_spring(__m256
 }
 
 // Lane j = the sum of row j's four lanes.
-__attribute__((target("avx2,fma"), always_inline)) inline __m256d sum_rows(__m256d r0, __m256d r1, __m256d r2, __m256d r3)
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d sum_rows(__m256d r0, __m256d r1, __m256d r2,
+                                                                           __m256d r3)
 {
     const __m256d h01 = _mm256_hadd_pd(r0, r1); // r0 01, r1 01, r0 23, r1 23
     const __m256d h23 = _mm256_hadd_pd(r2, r3);
@@ -196,8 +197,8 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256d sum_rows(__m25
 
 template <bool Check>
 __attribute__((target("avx2,fma"))) double spring_forces_avx2(const SpringArrays& s, std::size_t first,
-                                                                std::size_t last, const double* p, double* f,
-                                                                const Owned<Check>& own)
+                                                              std::size_t last, const double* p, double* f,
+                                                              const Owned<Check>& own)
 {
     __m256d energy = _mm256_setzero_pd();
     std::size_t k = first;
@@ -217,10 +218,10 @@ __attribute__((target("avx2,fma"))) double spring_forces_avx2(const SpringArrays
         const __m256d w3 = _mm256_sub_pd(_mm256_load_pd(p + 8 * b3 + 4), _mm256_load_pd(p + 8 * a3 + 4));
         // The two dot products per spring as one lane per spring: the rows' products summed
         // across (no transpose of the rows themselves).
-        const __m256d l2 = sum_rows(_mm256_mul_pd(d0, d0), _mm256_mul_pd(d1, d1), _mm256_mul_pd(d2, d2),
-                                    _mm256_mul_pd(d3, d3));
-        const __m256d dot = sum_rows(_mm256_mul_pd(w0, d0), _mm256_mul_pd(w1, d1), _mm256_mul_pd(w2, d2),
-                                     _mm256_mul_pd(w3, d3));
+        const __m256d l2 =
+            sum_rows(_mm256_mul_pd(d0, d0), _mm256_mul_pd(d1, d1), _mm256_mul_pd(d2, d2), _mm256_mul_pd(d3, d3));
+        const __m256d dot =
+            sum_rows(_mm256_mul_pd(w0, d0), _mm256_mul_pd(w1, d1), _mm256_mul_pd(w2, d2), _mm256_mul_pd(w3, d3));
         const __m256d l = _mm256_sqrt_pd(l2);
         const __m256d inv = _mm256_div_pd(_mm256_set1_pd(1.0), l);
         const __m256d ext = _mm256_sub_pd(l, _mm256_loadu_pd(s.rest_length + k));
@@ -250,7 +251,7 @@ __attribute__((target("avx2,fma"))) double spring_forces_avx2(const SpringArrays
 // f[i] += g (or hands it over).
 template <bool Check>
 __attribute__((target("avx2,fma"), always_inline)) inline void add_row(__m256d g, std::size_t i, double* f,
-                                                                      const Owned<Check>& own)
+                                                                       const Owned<Check>& own)
 {
     if (own.owns(i)) {
         double* fi = f + 4 * i;
@@ -264,7 +265,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void add_row(__m256d g
 
 // a x b on x y z 0 rows: a.yzx b.zxy - a.zxy b.yzx (lane 3 stays 0).
 __attribute__((target("avx2,fma"), always_inline)) inline __m256d cross_rows(__m256d a_yzx, __m256d a_zxy,
-                                                                            __m256d b_yzx, __m256d b_zxy)
+                                                                             __m256d b_yzx, __m256d b_zxy)
 {
     return _mm256_fmsub_pd(a_yzx, b_zxy, _mm256_mul_pd(a_zxy, b_yzx));
 }
@@ -275,7 +276,7 @@ struct TetRows {
 };
 
 __attribute__((target("avx2,fma"), always_inline)) inline TetRows tet_rows(const std::array<std::int32_t, 4>& q,
-                                                                          const double* p)
+                                                                           const double* p)
 {
     const __m256d x0 = _mm256_load_pd(p + 8 * std::size_t(q[0]));
     const __m256d e1 = _mm256_sub_pd(_mm256_load_pd(p + 8 * std::size_t(q[1])), x0);
@@ -289,10 +290,9 @@ __attribute__((target("avx2,fma"), always_inline)) inline TetRows tet_rows(const
 }
 
 template <bool Check>
-__attribute__((target("avx2,fma"))) double volume_forces_avx2(const std::array<std::int32_t, 4>* tets,
-                                                                const double* rest_volume, const double* kv,
-                                                                std::size_t first, std::size_t last, const double* p,
-                                                                double* f, const Owned<Check>& own)
+__attribute__((target("avx2,fma"))) double
+volume_forces_avx2(const std::array<std::int32_t, 4>* tets, const double* rest_volume, const double* kv,
+                   std::size_t first, std::size_t last, const double* p, double* f, const Owned<Check>& own)
 {
     // Four tets at a time: their 6 V as one lane each, then each tet's magnitude broadcast onto
     // its own gradient rows.
@@ -367,7 +367,7 @@ __attribute__((target("avx2,fma"))) NodeEnergies pack_nodes_avx2(const NodeArray
 // Unpacking with 4-double stores: node i's store also writes 0 over node i + 1's x, which
 // node i + 1's store then overwrites, so the range's last node is done alone.
 __attribute__((target("avx2,fma"))) void unpack_forces_avx2(const double* f, std::size_t first, std::size_t last,
-                                                             double* out)
+                                                            double* out)
 {
     std::size_t i = first;
     for (; i + 1 < last; ++i)
@@ -386,7 +386,7 @@ bool cpu_has_avx2()
 
 bool cpu_has_simd_kernel()
 {
-#ifdef LOBE_SPRING_AVX2
+#ifdef LOBE_FORCE_AVX2
     static const bool simd = cpu_has_avx2();
     return simd;
 #else
@@ -400,7 +400,7 @@ template <bool Check>
 double springs_dispatch(const SpringArrays& s, std::size_t first, std::size_t last, const double* packed, double* f,
                         const Owned<Check>& own, bool simd)
 {
-#ifdef LOBE_SPRING_AVX2
+#ifdef LOBE_FORCE_AVX2
     if (simd && cpu_has_simd_kernel())
         return spring_forces_avx2(s, first, last, packed, f, own);
 #endif
@@ -412,7 +412,7 @@ double volume_dispatch(const std::array<std::int32_t, 4>* tets, const double* re
                        std::size_t first, std::size_t last, const double* packed, double* f, const Owned<Check>& own,
                        bool simd)
 {
-#ifdef LOBE_SPRING_AVX2
+#ifdef LOBE_FORCE_AVX2
     if (simd && cpu_has_simd_kernel())
         return volume_forces_avx2(tets, rest_volume, kv, first, last, packed, f, own);
 #endif
@@ -439,8 +439,8 @@ double volume_forces(const std::array<std::int32_t, 4>* tets, const double* rest
 {
     const std::size_t span = std::size_t(hi) - std::size_t(lo);
     if (!spill)
-        return volume_dispatch(tets, rest_volume, kv, first, last, packed, f, Owned<false>{std::size_t(lo), span, nullptr},
-                               simd);
+        return volume_dispatch(tets, rest_volume, kv, first, last, packed, f,
+                               Owned<false>{std::size_t(lo), span, nullptr}, simd);
     return volume_dispatch(tets, rest_volume, kv, first, last, packed, f, Owned<true>{std::size_t(lo), span, spill},
                            simd);
 }
@@ -448,7 +448,7 @@ double volume_forces(const std::array<std::int32_t, 4>* tets, const double* rest
 NodeEnergies pack_nodes(const NodeArrays& nodes, std::size_t first, std::size_t last, double* packed, double* f,
                         bool simd)
 {
-#ifdef LOBE_SPRING_AVX2
+#ifdef LOBE_FORCE_AVX2
     if (simd && cpu_has_simd_kernel())
         return pack_nodes_avx2(nodes, first, last, packed, f);
 #endif
@@ -457,7 +457,7 @@ NodeEnergies pack_nodes(const NodeArrays& nodes, std::size_t first, std::size_t 
 
 void unpack_forces(const double* f, std::size_t first, std::size_t last, double* out, bool simd)
 {
-#ifdef LOBE_SPRING_AVX2
+#ifdef LOBE_FORCE_AVX2
     if (simd && cpu_has_simd_kernel())
         return unpack_forces_avx2(f, first, last, out);
 #endif
