@@ -44,6 +44,16 @@ namespace {
 
 using Tet = std::array<std::int32_t, 4>;
 
+// The face of tet t opposite its local vertex i, its other three vertices in order.
+std::array<std::int32_t, 3> face_opposite(const Tet& t, int i)
+{
+    std::array<std::int32_t, 3> f{};
+    for (int k = 0, n = 0; k < 4; ++k)
+        if (k != i)
+            f[static_cast<std::size_t>(n++)] = t[static_cast<std::size_t>(k)];
+    return f;
+}
+
 // The quality threshold of the goal, reported before and after.
 constexpr double kGoal = 0.3;
 // A change must raise the worst measure of the tets it replaces by at least this much: it keeps
@@ -209,10 +219,7 @@ struct Change {
 bool try_flip23(const Work& w, std::int32_t t, int i, Change& best)
 {
     const auto& T = w.tets[static_cast<std::size_t>(t)];
-    std::array<std::int32_t, 3> f{};
-    for (int k = 0, n = 0; k < 4; ++k)
-        if (k != i)
-            f[static_cast<std::size_t>(n++)] = T[static_cast<std::size_t>(k)];
+    auto f = face_opposite(T, i); // oriented below
     const auto across = w.common(f);
     if (across.size() != 2)
         return false; // outer boundary
@@ -509,10 +516,7 @@ bool try_insertion(Work& w, std::int32_t t, int steps)
     const int lab = w.label[tu];
     std::vector<std::int32_t> neighbours;
     for (int i = 0; i < 4; ++i) {
-        std::array<std::int32_t, 3> f{};
-        for (int k = 0, n = 0; k < 4; ++k)
-            if (k != i)
-                f[static_cast<std::size_t>(n++)] = w.tets[tu][static_cast<std::size_t>(k)];
+        const auto f = face_opposite(w.tets[tu], i);
         for (auto u : w.common(f))
             if (u != t && w.label[static_cast<std::size_t>(u)] == lab)
                 neighbours.push_back(u);
@@ -535,10 +539,7 @@ bool try_insertion(Work& w, std::int32_t t, int steps)
         for (auto u : neighbours)
             for (int i = 0; i < 4; ++i) {
                 const auto& U = w.tets[static_cast<std::size_t>(u)];
-                std::array<std::int32_t, 3> f{};
-                for (int k = 0, n = 0; k < 4; ++k)
-                    if (k != i)
-                        f[static_cast<std::size_t>(n++)] = U[static_cast<std::size_t>(k)];
+                const auto f = face_opposite(U, i);
                 for (auto z : w.common(f))
                     if (w.label[static_cast<std::size_t>(z)] == lab &&
                         std::find(cav.begin(), cav.end(), z) == cav.end())
@@ -558,10 +559,7 @@ bool try_insertion(Work& w, std::int32_t t, int steps)
         for (auto c : cav)
             for (int i = 0; i < 4; ++i) {
                 const auto& T = w.tets[static_cast<std::size_t>(c)];
-                std::array<std::int32_t, 3> f{};
-                for (int k = 0, n = 0; k < 4; ++k)
-                    if (k != i)
-                        f[static_cast<std::size_t>(n++)] = T[static_cast<std::size_t>(k)];
+                const auto f = face_opposite(T, i);
                 bool inner = false;
                 for (auto u : w.common(f))
                     inner = inner || (u != c && in_cav(u));
@@ -751,10 +749,7 @@ ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest&
         st.below_after_pinned +=
             std::all_of(T.begin(), T.end(), [&](auto v) { return w.pinned[static_cast<std::size_t>(v)] != 0; });
         for (int i = 0; i < 4; ++i) {
-            std::array<std::int32_t, 3> f{};
-            for (int k = 0, n = 0; k < 4; ++k)
-                if (k != i)
-                    f[static_cast<std::size_t>(n++)] = T[static_cast<std::size_t>(k)];
+            const auto f = face_opposite(T, i);
             const auto across = w.common(f);
             if (across.size() == 1 || w.label[across[0]] != w.label[across[1]]) {
                 ++st.below_after_surface_face;

@@ -38,6 +38,19 @@ template <bool Check> struct Owned {
     bool owns(std::size_t i) const { return !Check || i - lo < span; } // unsigned: below lo wraps round
 };
 
+// Adds g to f[i] (or hands it over).
+template <bool Check>
+inline void add_to(std::size_t i, double gx, double gy, double gz, double* f, const Owned<Check>& own)
+{
+    if (own.owns(i)) {
+        f[4 * i] += gx;
+        f[4 * i + 1] += gy;
+        f[4 * i + 2] += gz;
+    } else {
+        own.spill->push_back({std::int32_t(i), {gx, gy, gz}});
+    }
+}
+
 // One spring, in the formula of the plain loop.
 template <bool Check>
 inline double spring_scalar(const SpringArrays& s, std::size_t k, const double* p, double* f, const Owned<Check>& own)
@@ -52,22 +65,8 @@ inline double spring_scalar(const SpringArrays& s, std::size_t k, const double* 
     const double vrel = ((pb[4] - pa[4]) * dx + (pb[5] - pa[5]) * dy + (pb[6] - pa[6]) * dz) * inv;
     // Positive magnitude pulls a towards b: a stretched or separating spring.
     const double m = (s.stiffness[k] * ext + s.damping[k] * vrel) * inv;
-    if (own.owns(a)) {
-        double* fa = f + 4 * a;
-        fa[0] += m * dx;
-        fa[1] += m * dy;
-        fa[2] += m * dz;
-    } else {
-        own.spill->push_back({std::int32_t(a), {m * dx, m * dy, m * dz}});
-    }
-    if (own.owns(b)) {
-        double* fb = f + 4 * b;
-        fb[0] -= m * dx;
-        fb[1] -= m * dy;
-        fb[2] -= m * dz;
-    } else {
-        own.spill->push_back({std::int32_t(b), {-m * dx, -m * dy, -m * dz}});
-    }
+    add_to(a, m * dx, m * dy, m * dz, f, own);
+    add_to(b, -m * dx, -m * dy, -m * dz, f, own); // x + (-y) is x - y exactly
     return s.stiffness[k] * ext * ext;
 }
 
@@ -79,19 +78,6 @@ double spring_forces_scalar(const SpringArrays& s, std::size_t first, std::size_
     for (std::size_t k = first; k < last; ++k)
         e += spring_scalar(s, k, p, f, own);
     return e;
-}
-
-// Adds g to f[i] (or hands it over).
-template <bool Check>
-inline void add_to(std::size_t i, double gx, double gy, double gz, double* f, const Owned<Check>& own)
-{
-    if (own.owns(i)) {
-        f[4 * i] += gx;
-        f[4 * i + 1] += gy;
-        f[4 * i + 2] += gz;
-    } else {
-        own.spill->push_back({std::int32_t(i), {gx, gy, gz}});
-    }
 }
 
 // One tet's volume term, in the formula of the thesis's eq. 6.8 with its sign errors corrected.
@@ -159,31 +145,34 @@ void unpack_forces_scalar(const double* f, std::size_t first, std::size_t last, 
 }
 
 #ifdef LOBE_FORCE_AVX2
-// Adds a spring's force row g to f[a] and takes it from f[b]: 32-byte records, one load, add
-// and store each. Consecutive springs of one a chain through a store and its reload, and perf
-// blames those stores, yet sparing them measured slower both ways tried: a run's sum kept in a
-// register (5 %), and a segmented prefix sum over each block of four with one store per run
-// (8 %; docs/benchmarks.md).
+// f[i] += g, or f[i] -= g when Subtract, on a 32-byte record: one load, add and store; a node
+// the pass does not own gets the force handed over instead.
+template <bool Subtract, bool Check>
+__attribute__((target("avx2,fma"), always_inline)) inline void add_row(__m256d g, std::size_t i, double* f,
+                                                                       const Owned<Check>& own)
+{
+    if (own.owns(i)) {
+        double* fi = f + 4 * i;
+        const __m256d old = _mm256_load_pd(fi);
+        _mm256_store_pd(fi, Subtract ? _mm256_sub_pd(old, g) : _mm256_add_pd(old, g));
+    } else {
+        alignas(32) double r[4];
+        _mm256_store_pd(r, g);
+        const double sign = Subtract ? -1 : 1;
+        own.spill->push_back({std::int32_t(i), {sign * r[0], sign * r[1], sign * r[2]}});
+    }
+}
+
+// Adds a spring's force row g to f[a] and takes it from f[b]. Consecutive springs of one a
+// chain through a store and its reload, and perf blames those stores, yet sparing them
+// measured slower both ways tried: a run's sum kept in a register (5 %), and a segmented prefix
+// sum over each block of four with one store per run (8 %; docs/benchmarks.md).
 template <bool Check>
 __attribute__((target("avx2,fma"), always_inline)) inline void add_spring(__m256d g, std::size_t a, std::size_t b,
                                                                           double* f, const Owned<Check>& own)
 {
-    if (own.owns(a)) {
-        double* fa = f + 4 * a;
-        _mm256_store_pd(fa, _mm256_add_pd(_mm256_load_pd(fa), g));
-    } else {
-        alignas(32) double r[4];
-        _mm256_store_pd(r, g);
-        own.spill->push_back({std::int32_t(a), {r[0], r[1], r[2]}});
-    }
-    if (own.owns(b)) {
-        double* fb = f + 4 * b;
-        _mm256_store_pd(fb, _mm256_sub_pd(_mm256_load_pd(fb), g));
-    } else {
-        alignas(32) double r[4];
-        _mm256_store_pd(r, g);
-        own.spill->push_back({std::int32_t(b), {-r[0], -r[1], -r[2]}});
-    }
+    add_row<false>(g, a, f, own);
+    add_row<true>(g, b, f, own);
 }
 
 // Lane j = the sum of row j's four lanes.
@@ -248,21 +237,6 @@ __attribute__((target("avx2,fma"))) double spring_forces_avx2(const SpringArrays
     return e;
 }
 
-// f[i] += g (or hands it over).
-template <bool Check>
-__attribute__((target("avx2,fma"), always_inline)) inline void add_row(__m256d g, std::size_t i, double* f,
-                                                                       const Owned<Check>& own)
-{
-    if (own.owns(i)) {
-        double* fi = f + 4 * i;
-        _mm256_store_pd(fi, _mm256_add_pd(_mm256_load_pd(fi), g));
-    } else {
-        alignas(32) double r[4];
-        _mm256_store_pd(r, g);
-        own.spill->push_back({std::int32_t(i), {r[0], r[1], r[2]}});
-    }
-}
-
 // a x b on x y z 0 rows: a.yzx b.zxy - a.zxy b.yzx (lane 3 stays 0).
 __attribute__((target("avx2,fma"), always_inline)) inline __m256d cross_rows(__m256d a_yzx, __m256d a_zxy,
                                                                              __m256d b_yzx, __m256d b_zxy)
@@ -316,11 +290,10 @@ volume_forces_avx2(const std::array<std::int32_t, 4>* tets, const double* rest_v
             const auto& q = tets[t + j];
             const __m256d f1 = _mm256_mul_pd(mj[j], rows[j]->g1), f2 = _mm256_mul_pd(mj[j], rows[j]->g2),
                           f3 = _mm256_mul_pd(mj[j], rows[j]->g3);
-            add_row(f1, std::size_t(q[1]), f, own);
-            add_row(f2, std::size_t(q[2]), f, own);
-            add_row(f3, std::size_t(q[3]), f, own);
-            add_row(_mm256_sub_pd(_mm256_setzero_pd(), _mm256_add_pd(_mm256_add_pd(f1, f2), f3)), std::size_t(q[0]), f,
-                    own);
+            add_row<false>(f1, std::size_t(q[1]), f, own);
+            add_row<false>(f2, std::size_t(q[2]), f, own);
+            add_row<false>(f3, std::size_t(q[3]), f, own);
+            add_row<true>(_mm256_add_pd(_mm256_add_pd(f1, f2), f3), std::size_t(q[0]), f, own);
         }
     }
     alignas(32) double lanes[4];

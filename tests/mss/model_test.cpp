@@ -269,6 +269,20 @@ TEST(MssModel, RejectsUnknownTissueAndBadParameters)
 
 namespace {
 
+// The model's rest state with every node displaced at random by up to 0.3 mm per axis and
+// moving at up to 1 cm/s.
+mss::State jiggled(const mss::Model& m, unsigned seed)
+{
+    mss::State s = m.rest_state();
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (auto& x : s.x)
+        x += 0.3e-3 * u(rng);
+    for (auto& v : s.v)
+        v = 0.01 * u(rng);
+    return s;
+}
+
 // The forces of two models of one mesh on one state agree to 1e-12 of the largest (rounding
 // only: the same formulas, each node's sum in a fixed order), and so do the spring and volume
 // energies ((V - V0)^2 to 1e-10: V - V0 loses digits to V).
@@ -309,13 +323,7 @@ TEST(MssModel, TwoThreadSpringPassGivesTheSerialForces)
     two_scalar.simd = false; // the scalar loop with the same hand-overs (CPUs without AVX2)
     mss::Model serial(mesh), threaded(mesh, two), threaded_scalar(mesh, two_scalar);
     ASSERT_GT(serial.springs().size(), 100000u);
-    mss::State s = serial.rest_state();
-    std::mt19937 rng(7);
-    std::uniform_real_distribution<double> u(-1, 1);
-    for (auto& x : s.x)
-        x += 0.3e-3 * u(rng);
-    for (auto& v : s.v)
-        v = 0.01 * u(rng);
+    mss::State s = jiggled(serial, 7);
     expect_same_forces(serial, threaded, s);
     expect_same_forces(serial, threaded_scalar, s);
     // Split ten edges spread over the block in all models (the same edits, the same state).
@@ -352,13 +360,7 @@ TEST(MssModel, SimdForcePassesGiveTheScalarForces)
     simd.mass_damping = scalar.mass_damping = 2;
     scalar.simd = false;
     mss::Model fast(mesh, simd), plain(mesh, scalar);
-    mss::State s = fast.rest_state();
-    std::mt19937 rng(11);
-    std::uniform_real_distribution<double> u(-1, 1);
-    for (auto& x : s.x)
-        x += 0.3e-3 * u(rng);
-    for (auto& v : s.v)
-        v = 0.01 * u(rng);
+    mss::State s = jiggled(fast, 11);
     const mss::Energy ef = fast.energy(s), ep = plain.energy(s);
     EXPECT_GT(ef.volume, 0); // the volume kernel has work to do
     // The packing pass's energies: four lanes against one running sum, rounding only.
