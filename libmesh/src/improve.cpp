@@ -1,6 +1,7 @@
-// Quality improvement on the combined measure inside a region of interest: flips and smoothing
-// that never touch a face between two tissues or on the outer boundary. Why it is done this way:
-// docs/algorithms/meshing.md ("Quality improvement in the region of interest").
+// Quality improvement on the combined measure inside a region of interest, and on the smallest
+// dihedral angle over the whole mesh: flips, smoothing and vertex insertion that never touch a
+// face between two tissues or on the outer boundary (but for the interface flip of a sliver).
+// Why it is done this way: docs/algorithms/meshing.md ("Quality improvement", "Slivers").
 #include "lobe/mesh/improve.h"
 
 #include "lobe/core/errors.h"
@@ -9,6 +10,8 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -54,8 +57,24 @@ std::array<std::int32_t, 3> face_opposite(const Tet& t, int i)
     return f;
 }
 
-// The quality threshold of the goal, reported before and after.
+// What a pass raises: the thesis's combined measure, or the smallest dihedral angle [deg].
+enum class Objective { Combined, Dihedral };
+
+// The combined measure's threshold of the goal, reported before and after.
 constexpr double kGoal = 0.3;
+// An interface flip moves the interface by the distance between the sliver's two diagonals
+// (its thickness); it must stay below this fraction of the sliver's mean edge.
+constexpr double kMaxFlipThickness = 0.3;
+constexpr double kDeg = 180 / 3.14159265358979323846;
+
+// Smallest dihedral angle [deg]; an inverted or flat tet scores -1, below any angle.
+double min_dihedral_deg(const std::array<Vec3, 4>& q)
+{
+    if (!(core::signed_volume(q[0], q[1], q[2], q[3]) > 0))
+        return -1;
+    const auto a = dihedral_angles(q[0], q[1], q[2], q[3]);
+    return *std::min_element(a.begin(), a.end()) * kDeg;
+}
 // A change must raise the worst measure of the tets it replaces by at least this much: it keeps
 // the passes from cycling on rounding-level gains.
 constexpr double kMinGain = 1e-6;
@@ -66,10 +85,10 @@ constexpr int kMaxRing = 12;
 // The mesh while it changes: tets die and are born, every vertex knows its live tets.
 class Work {
   public:
-    Work(const core::TetMesh& m, const ImproveParams& p) : pos(m.vertices), tets(m.tets), label(m.tet_labels)
+    Work(const core::TetMesh& m, Objective o, double goal_, double weight, double guard)
+        : pos(m.vertices), orig(m.vertices), tets(m.tets), label(m.tet_labels), objective(o), target(goal_), guard_deg(guard)
     {
-        qp.weight = p.weight;
-        target = kGoal;
+        qp.weight = weight;
         alive.assign(tets.size(), 1);
         q.resize(tets.size());
         star.resize(pos.size());
@@ -81,7 +100,24 @@ class Work {
         pin_surface_vertices();
     }
 
-    double quality(const Tet& t) const { return combined_measure(p(t[0]), p(t[1]), p(t[2]), p(t[3]), qp); }
+    // The objective of the tet with corners c.
+    double measure(const std::array<Vec3, 4>& c) const
+    {
+        return objective == Objective::Combined ? combined_measure(c[0], c[1], c[2], c[3], qp) : min_dihedral_deg(c);
+    }
+    std::array<Vec3, 4> corners(const Tet& t) const { return {p(t[0]), p(t[1]), p(t[2]), p(t[3])}; }
+    double quality(const Tet& t) const { return measure(corners(t)); }
+    // The smallest dihedral angle of tets `ts` [deg], for the guard.
+    template <class C> double worst_angle(const C& ts) const
+    {
+        double mn = std::numeric_limits<double>::infinity();
+        for (const Tet& t : ts)
+            mn = std::min(mn, min_dihedral_deg(corners(t)));
+        return mn;
+    }
+    // Whether a change whose new tets' worst angle is `after` (the old ones' `before`) keeps
+    // the dihedral floor (ImproveParams::min_dihedral).
+    bool guard_ok(double after, double before) const { return guard_deg <= 0 || after >= std::min(guard_deg, before); }
     const Vec3& p(std::int32_t v) const { return pos[static_cast<std::size_t>(v)]; }
     Vec3 centroid(std::int32_t t) const
     {
@@ -149,19 +185,87 @@ class Work {
     }
 
     std::vector<Vec3> pos;
+    std::vector<Vec3> orig; // the input's positions: the surfaces that surface vertices slide on
     std::vector<Tet> tets;
     std::vector<std::int32_t> label;
     std::vector<char> alive;
     std::vector<double> q;
     std::vector<std::vector<std::int32_t>> star; // live tets of each vertex
     std::vector<char> pinned;                    // on the outer boundary or on an interface
+    std::vector<char> slid;                      // slid once already (see smooth_vertex)
     std::vector<std::int32_t> free_slots;        // dead tets' indices, reused so that an
                                                  // unchanged mesh keeps its tet order
     QualityParams qp;
-    double target = 0; // the 0.3
+    Objective objective;
+    double target = 0;    // the goal: 0.3 combined, or SliverParams::goal degrees
+    double guard_deg = 0; // ImproveParams::min_dihedral for the combined objective, else 0
     bool guard_count = true;
 
-    // How many of `qs` lie below 0.3: a change may not add to them.
+    // The faces around v that lie on a surface (outer boundary or interface), once each, with the
+    // key of their surface: the two labels (0 outside). Face (v, f[1], f[2]).
+    struct SurfaceFace {
+        std::int64_t key;
+        std::array<std::int32_t, 3> f;
+    };
+    std::vector<SurfaceFace> surface_faces(std::int32_t v) const
+    {
+        std::vector<SurfaceFace> out;
+        for (auto t : star[static_cast<std::size_t>(v)]) {
+            const auto& T = tets[static_cast<std::size_t>(t)];
+            const int lt = label[static_cast<std::size_t>(t)];
+            for (int i = 0; i < 4; ++i) {
+                if (T[static_cast<std::size_t>(i)] == v)
+                    continue;
+                auto f = face_opposite(T, i);
+                int other = 0;
+                for (auto u : common(f))
+                    if (u != t)
+                        other = label[static_cast<std::size_t>(u)];
+                if (other == lt)
+                    continue;
+                std::rotate(f.begin(), std::find(f.begin(), f.end(), v), f.end());
+                if (f[1] > f[2])
+                    std::swap(f[1], f[2]);
+                const std::int64_t key =
+                    static_cast<std::int64_t>(std::min(lt, other)) << 32 | static_cast<std::uint32_t>(std::max(lt, other));
+                if (std::none_of(out.begin(), out.end(), [&](const SurfaceFace& sf) { return sf.f == f; }))
+                    out.push_back({key, f});
+            }
+        }
+        return out;
+    }
+    // Whether surface vertex v may slide along its surface: all its surface faces on one surface,
+    // forming one closed fan (each neighbour in exactly two of them), so that v lies inside a
+    // surface patch, not on a curve where surfaces meet.
+    bool slides(std::int32_t v) const
+    {
+        const auto fs = surface_faces(v);
+        if (fs.size() < 3)
+            return false;
+        std::vector<std::int32_t> ends;
+        for (const auto& f : fs) {
+            if (f.key != fs[0].key)
+                return false;
+            ends.push_back(f.f[1]);
+            ends.push_back(f.f[2]);
+        }
+        std::sort(ends.begin(), ends.end());
+        for (std::size_t i = 0; i < ends.size(); i += 2)
+            if (ends[i] != ends[i + 1] || (i + 2 < ends.size() && ends[i + 2] == ends[i]))
+                return false;
+        return true;
+    }
+
+    // Tets of `ids` (live, by index) as vertex quadruples.
+    std::vector<Tet> tets_of(const std::vector<std::int32_t>& ids) const
+    {
+        std::vector<Tet> out;
+        for (auto t : ids)
+            out.push_back(tets[static_cast<std::size_t>(t)]);
+        return out;
+    }
+
+    // How many of `qs` lie below the goal: a change may not add to them.
     template <class C> int below(const C& qs) const
     {
         if (!guard_count)
@@ -212,6 +316,7 @@ struct Change {
     int lab = 0;
     double old_min = 0, new_min = -std::numeric_limits<double>::infinity();
     bool edge_removal = false;
+    std::int32_t relabelled = -1; // the interface flip's sliver, among old_tets
 };
 
 // 2-3 flip of the face of tet t opposite its local vertex i: the two tets sharing the face
@@ -251,7 +356,8 @@ bool try_flip23(const Work& w, std::int32_t t, int i, Change& best)
         c.new_min = std::min(c.new_min, qn);
     }
     const std::array<double, 2> old_q{w.q[static_cast<std::size_t>(t)], w.q[static_cast<std::size_t>(u)]};
-    if (c.new_min > c.old_min + kMinGain && c.new_min > best.new_min && w.below(c.new_q) <= w.below(old_q)) {
+    if (c.new_min > c.old_min + kMinGain && c.new_min > best.new_min && w.below(c.new_q) <= w.below(old_q) &&
+        (w.guard_deg <= 0 || w.guard_ok(w.worst_angle(c.new_tets), w.worst_angle(w.tets_of(c.old_tets))))) {
         best = std::move(c);
         return true;
     }
@@ -358,8 +464,82 @@ bool try_edge_removal(const Work& w, std::int32_t a, std::int32_t b, Change& bes
         old_q.push_back(w.q[static_cast<std::size_t>(t)]);
     if (w.below(c.new_q) > w.below(old_q))
         return false;
+    if (w.guard_deg > 0 && !w.guard_ok(w.worst_angle(c.new_tets), w.worst_angle(w.tets_of(ring_tets))))
+        return false;
     best = std::move(c);
     return true;
+}
+
+// The distance between the lines through p0 p1 and q0 q1 (infinite when parallel).
+double line_distance(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1)
+{
+    const Vec3 n = cross(p1 - p0, q1 - q0);
+    const double nn = norm(n);
+    return nn > 0 ? std::abs(dot(q0 - p0, n)) / nn : std::numeric_limits<double>::infinity();
+}
+
+// Interface flip: bad tet t of tissue A has two faces, sharing edge (a, b), on its interface
+// with one tissue B, and its other two faces, sharing (c, d), against tets of A. Given to B, t
+// joins B's tets around (a, b), which edge removal then replaces: the interface's triangles
+// (a, b, c), (a, b, d) become (c, d, a), (c, d, b), a 2-2 flip of the interface surface. Only
+// when (c, d) lies inside A (not yet on a surface, so the surface stays a manifold) and t is
+// thin across its diagonals (the interface moves by that thickness).
+bool try_interface_flip(Work& w, std::int32_t t, Change& best)
+{
+    const auto tu = static_cast<std::size_t>(t);
+    const Tet T = w.tets[tu];
+    const int A = w.label[tu];
+    auto across = [&](int i) -> std::int32_t {
+        for (auto u : w.common(face_opposite(T, i)))
+            if (u != t)
+                return u;
+        return -1; // outer boundary
+    };
+    double mean_edge = 0;
+    for (int i = 0; i < 4; ++i)
+        for (int j = i + 1; j < 4; ++j)
+            mean_edge += core::distance(w.p(T[static_cast<std::size_t>(i)]), w.p(T[static_cast<std::size_t>(j)])) / 6;
+    bool found = false;
+    for (int i = 0; i < 4; ++i)
+        for (int j = i + 1; j < 4; ++j) {
+            int k = 0;
+            while (k == i || k == j)
+                ++k;
+            const int l = 6 - i - j - k;
+            // Faces opposite k and l hold edge (a, b) = (T[i], T[j]); those opposite i and j hold (c, d).
+            const auto uk = across(k), ul = across(l), ui = across(i), uj = across(j);
+            if (uk < 0 || ul < 0 || ui < 0 || uj < 0)
+                continue;
+            const int B = w.label[static_cast<std::size_t>(uk)];
+            if (B == A || w.label[static_cast<std::size_t>(ul)] != B || w.label[static_cast<std::size_t>(ui)] != A ||
+                w.label[static_cast<std::size_t>(uj)] != A)
+                continue;
+            const auto a = T[static_cast<std::size_t>(i)], b = T[static_cast<std::size_t>(j)];
+            const auto c = T[static_cast<std::size_t>(k)], d = T[static_cast<std::size_t>(l)];
+            if (line_distance(w.p(a), w.p(b), w.p(c), w.p(d)) > kMaxFlipThickness * mean_edge)
+                continue;
+            // (c, d) inside A: every tet around it is A's and every face around it has two tets.
+            bool inside = true;
+            for (auto u : w.common(std::array<std::int32_t, 2>{c, d})) {
+                const auto& U = w.tets[static_cast<std::size_t>(u)];
+                inside = inside && w.label[static_cast<std::size_t>(u)] == A;
+                for (int m = 0; m < 4 && inside; ++m)
+                    if (U[static_cast<std::size_t>(m)] != c && U[static_cast<std::size_t>(m)] != d)
+                        inside = w.common(face_opposite(U, m)).size() == 2;
+            }
+            if (!inside)
+                continue;
+            Change ch;
+            w.label[tu] = B;
+            const bool ok = try_edge_removal(w, a, b, ch);
+            w.label[tu] = A;
+            if (ok && ch.new_min > best.new_min) {
+                ch.relabelled = t;
+                best = std::move(ch);
+                found = true;
+            }
+        }
+    return found;
 }
 
 void apply(Work& w, const Change& c)
@@ -382,7 +562,7 @@ double star_min(const Work& w, std::int32_t v, const Vec3& x, std::vector<double
         const auto& T = w.tets[static_cast<std::size_t>(s[k])];
         for (std::size_t i = 0; i < 4; ++i)
             q4[i] = T[i] == v ? x : w.p(T[i]);
-        const double qk = combined_measure(q4[0], q4[1], q4[2], q4[3], w.qp);
+        const double qk = w.measure(q4);
         if (each)
             (*each)[k] = qk;
         mn = std::min(mn, qk);
@@ -404,9 +584,7 @@ Vec3 tet_gradient(const Work& w, std::int32_t t, std::int32_t v, const Vec3& x, 
                 lo[i][a] -= h;
                 hi[i][a] += h;
             }
-        g[a] =
-            (combined_measure(hi[0], hi[1], hi[2], hi[3], w.qp) - combined_measure(lo[0], lo[1], lo[2], lo[3], w.qp)) /
-            (2 * h);
+        g[a] = (w.measure(hi) - w.measure(lo)) / (2 * h);
     }
     return g;
 }
@@ -434,33 +612,101 @@ Vec3 min_norm_in_hull(const std::vector<Vec3>& g)
     return x;
 }
 
-// Moves free vertex v where the worst tet of its star is better: the neighbours' centroid if
-// that is better, then steps along the ascent direction of the worst tets, halving each step
-// until it helps. Returns whether v moved.
-bool smooth_vertex(Work& w, std::int32_t v, int steps)
+// The point of triangle (a, b, c) closest to p (Ericson, "Real-Time Collision Detection", 5.1.5).
+Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c)
+{
+    const Vec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+    if (d1 <= 0 && d2 <= 0)
+        return a;
+    const Vec3 bp = p - b;
+    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+    if (d3 >= 0 && d4 <= d3)
+        return b;
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0)
+        return a + ab * (d1 / (d1 - d3));
+    const Vec3 cp = p - c;
+    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+    if (d6 >= 0 && d5 <= d6)
+        return c;
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0)
+        return a + ac * (d2 / (d2 - d6));
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    const double den = 1 / (va + vb + vc);
+    return a + ab * (vb * den) + ac * (vc * den);
+}
+
+// Moves vertex v where the worst tet of its star is better: the neighbours' centroid if that is
+// better, then steps along the ascent direction of the worst tets, halving each step until it
+// helps. A vertex on a surface (Work::slides) moves along it: every position is projected onto
+// its surface triangles at the input's positions, so it stays on the surface the mesher made
+// (the new triangles are its chords; an interface flip nearby has replaced some by chords of
+// its own), and the direction is projected onto the patch's tangent plane. `moved_volume` gets the volume that changed tissue. Returns whether v moved.
+bool smooth_vertex(Work& w, std::int32_t v, int steps, double* moved_volume = nullptr)
 {
     const auto& s = w.star[static_cast<std::size_t>(v)];
     if (s.empty())
         return false;
     Vec3 x = w.p(v);
+    const bool on_surface = w.pinned[static_cast<std::size_t>(v)] != 0;
+    std::vector<std::array<Vec3, 3>> patch;
+    Vec3 normal;
+    Vec3 centre;
+    if (on_surface) {
+        std::vector<std::int32_t> ring;
+        const auto o = [&](std::int32_t u) { return w.orig[static_cast<std::size_t>(u)]; };
+        for (const auto& sf : w.surface_faces(v)) {
+            patch.push_back({o(v), o(sf.f[1]), o(sf.f[2])});
+            Vec3 n = cross(w.p(sf.f[1]) - x, w.p(sf.f[2]) - x);
+            normal += dot(n, normal) < 0 ? n * -1.0 : n; // the faces' order gives no orientation
+            ring.push_back(sf.f[1]);
+            ring.push_back(sf.f[2]);
+        }
+        normal = normalized(normal);
+        std::sort(ring.begin(), ring.end());
+        ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
+        for (auto u : ring)
+            centre += w.p(u);
+        centre /= static_cast<double>(ring.size());
+    }
+    auto place = [&](const Vec3& y) {
+        if (!on_surface)
+            return y;
+        Vec3 best = x;
+        double bd = std::numeric_limits<double>::infinity();
+        for (const auto& tri : patch) {
+            const Vec3 c = closest_on_triangle(y, tri[0], tri[1], tri[2]);
+            if (const double d = core::distance(c, y); d < bd) {
+                bd = d;
+                best = c;
+            }
+        }
+        return best;
+    };
     std::vector<double> each;
     double f = star_min(w, v, x, &each);
     const double f0 = f;
     const int below0 = w.below(each);
     double mean_edge = 0;
-    Vec3 centre;
     int count = 0;
+    Vec3 all_centre;
     for (auto t : s)
         for (auto u : w.tets[static_cast<std::size_t>(t)])
             if (u != v) {
                 mean_edge += core::distance(w.p(u), x);
-                centre += w.p(u);
+                all_centre += w.p(u);
                 ++count;
             }
     mean_edge /= count;
-    centre /= count;
+    if (!on_surface)
+        centre = all_centre / count;
     {
         std::vector<double> ec;
+        centre = place(centre);
         if (const double fc = star_min(w, v, centre, &ec); fc > f + kMinGain && w.below(ec) <= below0) {
             x = centre;
             f = fc;
@@ -474,14 +720,16 @@ bool smooth_vertex(Work& w, std::int32_t v, int steps)
         for (std::size_t k = 0; k < s.size(); ++k)
             if (each[k] <= f + 1e-3)
                 grads.push_back(tet_gradient(w, s[k], v, x, h));
-        const Vec3 d = min_norm_in_hull(grads);
+        Vec3 d = min_norm_in_hull(grads);
+        if (on_surface)
+            d -= normal * dot(d, normal);
         const double dn = norm(d);
         if (!(dn > 1e-12))
             break;
         const Vec3 dir = d / dn;
         bool moved = false;
         for (double alpha = 0.25 * mean_edge; alpha > 1e-4 * mean_edge; alpha /= 2) {
-            const Vec3 y = x + dir * alpha;
+            const Vec3 y = place(x + dir * alpha);
             std::vector<double> e2;
             const double fy = star_min(w, v, y, &e2);
             if (fy > f + kMinGain && w.below(e2) <= below0) {
@@ -497,6 +745,37 @@ bool smooth_vertex(Work& w, std::int32_t v, int steps)
     }
     if (!(f > f0 + kMinGain))
         return false;
+    const Vec3 x0 = w.p(v);
+    if (w.guard_deg > 0) {
+        const double before = w.worst_angle(w.tets_of(s));
+        w.pos[static_cast<std::size_t>(v)] = x;
+        const double after = w.worst_angle(w.tets_of(s));
+        w.pos[static_cast<std::size_t>(v)] = x0;
+        if (!w.guard_ok(after, before))
+            return false;
+    }
+    if (on_surface && moved_volume) {
+        // Each tissue's volume change in the star; what one gains another (or the outside) loses.
+        std::vector<std::pair<int, double>> change;
+        for (auto t : s) {
+            const auto& T = w.tets[static_cast<std::size_t>(t)];
+            std::array<Vec3, 4> a = w.corners(T), b = a;
+            for (std::size_t i = 0; i < 4; ++i)
+                if (T[i] == v)
+                    b[i] = x;
+            const double dv = core::signed_volume(b[0], b[1], b[2], b[3]) - core::signed_volume(a[0], a[1], a[2], a[3]);
+            const int lab = w.label[static_cast<std::size_t>(t)];
+            auto it = std::find_if(change.begin(), change.end(), [&](const auto& c) { return c.first == lab; });
+            if (it == change.end())
+                change.emplace_back(lab, dv);
+            else
+                it->second += dv;
+        }
+        double sum = 0;
+        for (const auto& c : change)
+            sum += std::abs(c.second);
+        *moved_volume += change.size() > 1 ? sum / 2 : sum;
+    }
     w.pos[static_cast<std::size_t>(v)] = x;
     for (auto t : s)
         w.q[static_cast<std::size_t>(t)] = w.quality(w.tets[static_cast<std::size_t>(t)]);
@@ -550,7 +829,8 @@ bool try_insertion(Work& w, std::int32_t t, int steps)
     std::vector<std::int32_t> cavity;
     std::vector<Tet> shells;
     Vec3 x;
-    double best = 0; // the start must give positive tets
+    // The start must give positive tets (the dihedral objective scores an inverted tet -1).
+    double best = w.objective == Objective::Combined ? 0 : -0.5;
     for (const auto& cav : cavities) {
         auto in_cav = [&](std::int32_t u) { return std::find(cav.begin(), cav.end(), u) != cav.end(); };
         // The cavity's boundary faces, as the tet with the vertex opposite the face replaced by
@@ -586,7 +866,7 @@ bool try_insertion(Work& w, std::int32_t t, int steps)
                 std::array<Vec3, 4> q4;
                 for (std::size_t i = 0; i < 4; ++i)
                     q4[i] = n[i] < 0 ? y : w.p(n[i]);
-                mn = std::min(mn, combined_measure(q4[0], q4[1], q4[2], q4[3], w.qp));
+                mn = std::min(mn, w.measure(q4));
             }
             return mn;
         };
@@ -633,9 +913,14 @@ bool try_insertion(Work& w, std::int32_t t, int steps)
     std::vector<double> new_q, old_q;
     for (auto u : w.star[static_cast<std::size_t>(v)])
         new_q.push_back(w.q[static_cast<std::size_t>(u)]);
-    for (const auto& o : old)
+    std::vector<Tet> old_tets;
+    for (const auto& o : old) {
         old_q.push_back(o.second);
-    if (new_min > old_min + kMinGain && w.below(new_q) <= w.below(old_q))
+        old_tets.push_back(o.first);
+    }
+    if (new_min > old_min + kMinGain && w.below(new_q) <= w.below(old_q) &&
+        (w.guard_deg <= 0 ||
+         w.guard_ok(w.worst_angle(w.tets_of(w.star[static_cast<std::size_t>(v)])), w.worst_angle(old_tets))))
         return true;
     const auto made = w.star[static_cast<std::size_t>(v)];
     for (auto u : made)
@@ -648,21 +933,23 @@ bool try_insertion(Work& w, std::int32_t t, int steps)
     return false;
 }
 
-} // namespace
+// What a pass works on and how, from ImproveParams or SliverParams.
+struct PassOptions {
+    double target = 0;   // tets below this are worked on
+    double margin = 0;   // ... when their centroid lies within this of the region
+    int max_rounds = 0;
+    bool raise_worst_last = true;
+    int smoothing_steps = 0;
+    bool interface_flips = false;
+    bool surface_moves = false;
+};
 
-ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest& roi, const ImproveParams& params)
+// Rounds of flips, smoothing and insertion on the bad tets of `w` near `roi`; fills `st`.
+void run_pass(Work& w, const RegionOfInterest& roi, const PassOptions& o, ImproveStats& st)
 {
-    if (const auto problem = core::mesh_problem(mesh); !problem.empty())
-        throw core::InvalidInputError("improve_quality: the mesh " + problem);
-    if (!(params.margin >= 0) || params.max_rounds < 0 || params.smoothing_steps < 0 ||
-        !(params.weight >= 0 && params.weight <= 1) || !std::isfinite(params.target))
-        throw core::InvalidInputError(
-            "improve_quality: margin must be >= 0 mm, rounds and steps >= 0, weight in [0, 1]");
-    const auto t0 = std::chrono::steady_clock::now();
-    Work w(mesh, params);
-    ImproveResult r;
-    ImproveStats& st = r.stats;
     st.ran = true;
+    st.goal = w.target;
+    w.slid.assign(w.pos.size(), 0);
     auto in_region = [&](std::int32_t t, double margin) { return distance_to_region(roi, w.centroid(t)) <= margin; };
     auto tally = [&](std::int64_t& count, std::int64_t& below, double& worst) {
         count = below = 0;
@@ -670,7 +957,7 @@ ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest&
         for (std::size_t t = 0; t < w.tets.size(); ++t)
             if (w.alive[t] && in_region(static_cast<std::int32_t>(t), 0)) {
                 ++count;
-                below += w.q[t] < kGoal;
+                below += w.q[t] < w.target;
                 worst = std::min(worst, w.q[t]);
             }
         if (count == 0)
@@ -681,20 +968,20 @@ ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest&
     auto bad_tets = [&] {
         std::vector<std::pair<double, std::int32_t>> bad;
         for (std::size_t t = 0; t < w.tets.size(); ++t)
-            if (w.alive[t] && w.q[t] < params.target && in_region(static_cast<std::int32_t>(t), params.margin))
+            if (w.alive[t] && w.q[t] < o.target && in_region(static_cast<std::int32_t>(t), o.margin))
                 bad.emplace_back(w.q[t], static_cast<std::int32_t>(t));
         std::sort(bad.begin(), bad.end());
         return bad;
     };
-    // Rounds that may not add tets below 0.3, then (raise_worst_last) rounds that only raise the
-    // worst; a stage ends after max_rounds or a round without change.
-    const int stages = params.raise_worst_last ? 2 : 1;
-    for (int round = 0; round < stages * params.max_rounds; ++round) {
-        if (round == params.max_rounds)
+    // Rounds that may not add tets below the goal, then (raise_worst_last) rounds that only raise
+    // the worst; a stage ends after max_rounds or a round without change.
+    const int stages = o.raise_worst_last ? 2 : 1;
+    for (int round = 0; round < stages * o.max_rounds; ++round) {
+        if (round == o.max_rounds)
             w.guard_count = false;
         std::int64_t changes = 0;
-        // Flips: for each bad tet still alive, the best of the 2-3 flips of its faces and the
-        // removals of its edges.
+        // Flips: for each bad tet still alive, the best of the 2-3 flips of its faces, the
+        // removals of its edges and its interface flips.
         for (const auto& [qt, t] : bad_tets()) {
             const auto tu = static_cast<std::size_t>(t);
             if (!w.alive[tu] || w.q[tu] != qt)
@@ -706,29 +993,48 @@ ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest&
             for (int i = 0; i < 4; ++i)
                 for (int j = i + 1; j < 4; ++j)
                     try_edge_removal(w, T[static_cast<std::size_t>(i)], T[static_cast<std::size_t>(j)], best);
+            // The interface flip changes the tissues' volumes: only when nothing inside one helps.
+            if (o.interface_flips && best.old_tets.empty())
+                try_interface_flip(w, t, best);
             if (best.old_tets.empty())
                 continue;
+            if (best.relabelled >= 0) {
+                ++st.interface_flips;
+                st.interface_flip_volume += std::abs(core::signed_volume(
+                    w.p(T[0]), w.p(T[1]), w.p(T[2]), w.p(T[3])));
+            } else {
+                ++(best.edge_removal ? st.edge_removals : st.flips23);
+            }
             apply(w, best);
-            ++(best.edge_removal ? st.edge_removals : st.flips23);
             ++changes;
         }
         // Smoothing: each free vertex of a bad tet, once per round.
         std::vector<char> tried(w.pos.size(), 0);
+        w.slid.resize(w.pos.size(), 0);
         for (const auto& [qt, t] : bad_tets())
             for (auto v : w.tets[static_cast<std::size_t>(t)]) {
                 const auto vu = static_cast<std::size_t>(v);
-                if (w.pinned[vu] || tried[vu])
+                if (tried[vu])
                     continue;
                 tried[vu] = 1;
-                if (smooth_vertex(w, v, params.smoothing_steps)) {
-                    ++st.vertex_moves;
+                // A surface vertex slides at most once per pass: enough to free the slivers it
+                // pins, and the pass cannot wander along the surface.
+                if (w.pinned[vu] && !(o.surface_moves && !w.slid[vu] && w.slides(v)))
+                    continue;
+                if (smooth_vertex(w, v, o.smoothing_steps, &st.surface_move_volume)) {
+                    if (w.pinned[vu]) {
+                        w.slid[vu] = 1;
+                        ++st.surface_moves;
+                    } else {
+                        ++st.vertex_moves;
+                    }
                     ++changes;
                 }
             }
         // Vertex insertion for the tets still bad after flips and smoothing.
         for (const auto& [qt, t] : bad_tets())
             if (w.alive[static_cast<std::size_t>(t)] && w.q[static_cast<std::size_t>(t)] == qt &&
-                try_insertion(w, t, params.smoothing_steps)) {
+                try_insertion(w, t, o.smoothing_steps)) {
                 ++st.vertices_inserted;
                 ++changes;
             }
@@ -736,16 +1042,27 @@ ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest&
         if (changes == 0) {
             if (!w.guard_count || stages == 1)
                 break;
-            round = params.max_rounds - 1; // the next round starts the second stage
+            round = o.max_rounds - 1; // the next round starts the second stage
         }
     }
     tally(st.tets_in_region_after, st.below_after, st.worst_after);
     // What is left, and why: a tet with its four vertices on surfaces cannot be smoothed, one
     // with a face on a surface keeps that face whatever the flips.
     for (std::size_t t = 0; t < w.tets.size(); ++t) {
-        if (!w.alive[t] || !(w.q[t] < kGoal) || !in_region(static_cast<std::int32_t>(t), 0))
+        if (!w.alive[t] || !(w.q[t] < w.target) || !in_region(static_cast<std::int32_t>(t), 0))
             continue;
         const auto& T = w.tets[t];
+        if (std::getenv("LOBE_DEBUG_SLIVERS")) {
+            std::fprintf(stderr, "left: q %.3f label %d; across:", w.q[t], w.label[t]);
+            for (int i = 0; i < 4; ++i) {
+                const auto ac = w.common(face_opposite(T, i));
+                std::fprintf(stderr, " %d", ac.size() == 1 ? 0 : w.label[static_cast<std::size_t>(ac[0] == std::int32_t(t) ? ac[1] : ac[0])]);
+            }
+            const auto dh = dihedral_angles(w.p(T[0]), w.p(T[1]), w.p(T[2]), w.p(T[3]));
+            std::fprintf(stderr, "; dihedrals");
+            for (double x : dh) std::fprintf(stderr, " %.1f", x * kDeg);
+            std::fprintf(stderr, "\n");
+        }
         st.below_after_pinned +=
             std::all_of(T.begin(), T.end(), [&](auto v) { return w.pinned[static_cast<std::size_t>(v)] != 0; });
         for (int i = 0; i < 4; ++i) {
@@ -757,8 +1074,49 @@ ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest&
             }
         }
     }
+}
+
+} // namespace
+
+ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest& roi, const ImproveParams& params)
+{
+    if (const auto problem = core::mesh_problem(mesh); !problem.empty())
+        throw core::InvalidInputError("improve_quality: the mesh " + problem);
+    if (!(params.margin >= 0) || params.max_rounds < 0 || params.smoothing_steps < 0 ||
+        !(params.weight >= 0 && params.weight <= 1) || !std::isfinite(params.target) ||
+        !(params.min_dihedral >= 0 && params.min_dihedral < 70))
+        throw core::InvalidInputError("improve_quality: margin must be >= 0 mm, rounds and steps >= 0, weight in "
+                                      "[0, 1], min_dihedral in [0, 70) degrees");
+    const auto t0 = std::chrono::steady_clock::now();
+    Work w(mesh, Objective::Combined, kGoal, params.weight, params.min_dihedral);
+    ImproveResult r;
+    run_pass(w, roi,
+             {params.target, params.margin, params.max_rounds, params.raise_worst_last, params.smoothing_steps,
+              params.interface_flips, params.surface_moves},
+             r.stats);
     r.mesh = w.mesh();
-    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    r.stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return r;
+}
+
+ImproveResult remove_slivers(const core::TetMesh& mesh, const SliverParams& params)
+{
+    if (const auto problem = core::mesh_problem(mesh); !problem.empty())
+        throw core::InvalidInputError("remove_slivers: the mesh " + problem);
+    // A regular tet's dihedral angle is 70.5 degrees: no tet has a smallest angle above it.
+    if (!(params.goal >= 0 && params.goal < 70) || !(params.target >= params.goal && params.target < 70) ||
+        params.max_rounds < 0 || params.smoothing_steps < 0)
+        throw core::InvalidInputError(
+            "remove_slivers: goal and target must satisfy 0 <= goal <= target < 70 degrees, rounds and steps >= 0");
+    const auto t0 = std::chrono::steady_clock::now();
+    Work w(mesh, Objective::Dihedral, params.goal, 0.6, 0);
+    ImproveResult r;
+    run_pass(w, RegionOfInterest{},
+             {params.target, 0, params.max_rounds, true, params.smoothing_steps, params.interface_flips,
+              params.surface_moves},
+             r.stats);
+    r.mesh = w.mesh();
+    r.stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return r;
 }
 

@@ -420,7 +420,7 @@ TEST(MeshLabels, FourFifthsSphere)
     // Boundary within a voxel of the label surface, both ways (the Hausdorff bound;
     // measured 0.37 mm from the mesh, 0.80 mm from the label surface, at the cut rims).
     EXPECT_LT(s.hausdorff.max(), 1.0);
-    // Quality: perturb and exude aim at 12 degrees and reach it here (serial runs repeat
+    // Quality: the exuder and the sliver pass aim at 12 degrees and reach it here (serial runs repeat
     // exactly); the bound is 10. About 16% of the tets rate below 0.3 on the combined
     // measure (the phantom's 13%): bounded at 20%, the combined measure is not optimised.
     EXPECT_GT(s.min_dihedral, 10.0);

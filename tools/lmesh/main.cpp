@@ -29,7 +29,7 @@ struct Options {
     std::vector<std::string> tissue_sizes, tissue_distances;
     std::vector<double> roi, roi_box;
     double roi_size = 0;
-    bool no_perturb = false, no_exude = false, no_peel = false, no_repair = false, no_improve = false;
+    bool perturb = false, no_exude = false, no_peel = false, no_repair = false, no_improve = false, no_slivers = false;
     int smooth = 10;
     mesh::MeshParams params;
 };
@@ -87,11 +87,12 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
         p.roi.box_hi = {o.roi_box[3], o.roi_box[4], o.roi_box[5]};
     }
     p.roi.size = o.roi_size;
-    p.perturb = !o.no_perturb;
+    p.perturb = o.perturb;
     p.exude = !o.no_exude;
     p.peel_slivers = !o.no_peel;
     p.repair_manifold = !o.no_repair;
     p.improve.enabled = !o.no_improve;
+    p.slivers.enabled = !o.no_slivers;
     p.progress = [&](const std::string& s) { progress.message(s); };
 
     const auto t0 = std::chrono::steady_clock::now();
@@ -146,7 +147,23 @@ int run(Options& o, const tools::Progress& progress, tools::RunRecord& record)
             param(k + ".tets", std::to_string(t.tets));
             param(k + ".pieces_meshed", std::to_string(t.components_meshed) + "/" + std::to_string(t.components));
         }
+        if (const auto& sl = res.slivers; sl.ran) {
+            // The sliver pass runs inside "mesh"; its own time and outcome.
+            param("result.slivers.seconds", fixed(sl.seconds, 3));
+            param("result.slivers.below_goal_before", std::to_string(sl.below_before));
+            param("result.slivers.below_goal_after", std::to_string(sl.below_after));
+            param("result.slivers.min_dihedral_before_deg", fixed(sl.worst_before, 2));
+            param("result.slivers.min_dihedral_after_deg", fixed(sl.worst_after, 2));
+            param("result.slivers.changes", std::to_string(sl.flips23 + sl.edge_removals + sl.vertex_moves +
+                                                           sl.vertices_inserted + sl.interface_flips + sl.surface_moves));
+            param("result.slivers.interface_flips", std::to_string(sl.interface_flips));
+            param("result.slivers.interface_flip_volume_mm3", fixed(sl.interface_flip_volume, 4));
+            param("result.slivers.surface_moves", std::to_string(sl.surface_moves));
+            param("result.slivers.surface_move_volume_mm3", fixed(sl.surface_move_volume, 4));
+        }
         if (const auto& im = res.improvement; im.ran) {
+            param("result.improve.interface_flips", std::to_string(im.interface_flips));
+            param("result.improve.surface_moves", std::to_string(im.surface_moves));
             // The ROI quality pass runs inside "mesh"; its own time and outcome.
             param("result.improve.seconds", fixed(im.seconds, 3));
             param("result.improve.rounds", std::to_string(im.rounds));
@@ -275,13 +292,21 @@ int main(int argc, char** argv)
     app.add_option("--sliver-bound", p.sliver_bound, "Perturb/exude target: smallest dihedral angle [deg]")
         ->check(CLI::Range(0.0, 30.0))
         ->capture_default_str();
-    app.add_flag("--no-perturb", o.no_perturb, "Skip CGAL's sliver perturbation");
+    app.add_flag("--perturb", o.perturb,
+                 "Run CGAL's sliver perturbation before the exuder (slow; the sliver pass does its work by default)");
     app.add_flag("--no-exude", o.no_exude, "Skip CGAL's sliver exudation");
     app.add_flag("--no-peel", o.no_peel, "Keep the flat tets on the outer boundary (see docs/algorithms/meshing.md)");
     app.add_flag("--no-repair", o.no_repair, "Keep tissues that touch themselves along an edge or at a vertex");
     app.add_flag("--no-improve", o.no_improve,
                  "Skip the quality improvement on the combined measure inside the region of interest (flips and "
                  "smoothing inside each tissue; runs only with --roi or --roi-box)");
+    app.add_flag("--no-slivers", o.no_slivers,
+                 "Skip the sliver pass after CGAL's optimisers (flips, smoothing and insertion on the tets whose "
+                 "smallest dihedral angle is below --sliver-target)");
+    app.add_option("--sliver-target", p.slivers.target,
+                   "Smallest dihedral angle [deg] below which the sliver pass works on a tet (it aims for 10)")
+        ->check(CLI::Range(10.0, 30.0))
+        ->capture_default_str();
     app.add_option("--improve-target", p.improve.target,
                    "Combined measure below which the region of interest's tets are worked on")
         ->check(CLI::Range(0.0, 1.0))

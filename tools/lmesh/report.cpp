@@ -52,6 +52,23 @@ nlohmann::json report_json(const Report& r)
                             {"volume_mm3", mr.volume}};
     j["slivers_peeled"] = {{"tets", res.peeled.tets}, {"volume_mm3", res.peeled.volume}};
     j["optimisation"] = res.optimisation;
+    if (const auto& sl = res.slivers; sl.ran)
+        j["slivers"] = {{"seconds", sl.seconds},
+                        {"rounds", sl.rounds},
+                        {"flips23", sl.flips23},
+                        {"edge_removals", sl.edge_removals},
+                        {"vertex_moves", sl.vertex_moves},
+                        {"vertices_inserted", sl.vertices_inserted},
+                        {"interface_flips", sl.interface_flips},
+                        {"interface_flip_volume_mm3", sl.interface_flip_volume},
+                        {"surface_moves", sl.surface_moves},
+                        {"surface_move_volume_mm3", sl.surface_move_volume},
+                        {"below_goal_before", sl.below_before},
+                        {"below_goal_after", sl.below_after},
+                        {"below_goal_after_on_surfaces", sl.below_after_pinned},
+                        {"below_goal_after_with_surface_face", sl.below_after_surface_face},
+                        {"min_dihedral_before_deg", sl.worst_before},
+                        {"min_dihedral_after_deg", sl.worst_after}};
     if (const auto& im = res.improvement; im.ran)
         j["roi_improvement"] = {{"seconds", im.seconds},
                                 {"rounds", im.rounds},
@@ -59,6 +76,8 @@ nlohmann::json report_json(const Report& r)
                                 {"edge_removals", im.edge_removals},
                                 {"vertex_moves", im.vertex_moves},
                                 {"vertices_inserted", im.vertices_inserted},
+                                {"interface_flips", im.interface_flips},
+                                {"surface_moves", im.surface_moves},
                                 {"roi_tets_before", im.tets_in_region_before},
                                 {"roi_tets_after", im.tets_in_region_after},
                                 {"roi_below_0.3_before", im.below_before},
@@ -136,16 +155,31 @@ std::string report_text(const Report& r)
                       res.peeled.volume);
         os << buf;
     }
+    if (const auto& sl = res.slivers; sl.ran) {
+        std::snprintf(buf, sizeof buf,
+                      "sliver pass: %lld tets below %.0f deg (smallest dihedral) before, %lld after (%lld with four "
+                      "vertices on surfaces); worst %.2f -> %.2f deg; %lld 2-3 flips, %lld edge removals, %lld "
+                      "interface flips (%.3f mm^3), %lld vertex moves, %lld surface moves (%.3f mm^3), %lld vertices "
+                      "inserted, %.2f s\n",
+                      static_cast<long long>(sl.below_before), sl.goal, static_cast<long long>(sl.below_after),
+                      static_cast<long long>(sl.below_after_pinned), sl.worst_before, sl.worst_after,
+                      static_cast<long long>(sl.flips23), static_cast<long long>(sl.edge_removals),
+                      static_cast<long long>(sl.interface_flips), sl.interface_flip_volume,
+                      static_cast<long long>(sl.vertex_moves), static_cast<long long>(sl.surface_moves),
+                      sl.surface_move_volume, static_cast<long long>(sl.vertices_inserted), sl.seconds);
+        os << buf;
+    }
     if (const auto& im = res.improvement; im.ran) {
         std::snprintf(buf, sizeof buf,
                       "ROI quality pass: %lld of %lld tets below 0.3 (combined) before, %lld of %lld after (%lld with "
                       "four vertices on surfaces); worst %.3f -> %.3f; %lld 2-3 flips, %lld edge removals, %lld vertex "
-                      "moves, %lld vertices inserted in %d rounds, %.2f s\n",
+                      "moves, %lld surface moves, %lld interface flips, %lld vertices inserted in %d rounds, %.2f s\n",
                       static_cast<long long>(im.below_before), static_cast<long long>(im.tets_in_region_before),
                       static_cast<long long>(im.below_after), static_cast<long long>(im.tets_in_region_after),
                       static_cast<long long>(im.below_after_pinned), im.worst_before, im.worst_after,
                       static_cast<long long>(im.flips23), static_cast<long long>(im.edge_removals),
-                      static_cast<long long>(im.vertex_moves), static_cast<long long>(im.vertices_inserted), im.rounds,
+                      static_cast<long long>(im.vertex_moves), static_cast<long long>(im.surface_moves),
+                      static_cast<long long>(im.interface_flips), static_cast<long long>(im.vertices_inserted), im.rounds,
                       im.seconds);
         os << buf;
     }

@@ -35,15 +35,45 @@ struct ImproveParams {
                                   //!< below 0.3: docs/algorithms/meshing.md)
     int smoothing_steps = 6;      //!< line-search steps per vertex and round
     double weight = 0.6;          //!< w of the combined measure (QualityParams::weight, thesis: 0.6)
+    double min_dihedral = 10;     //!< [deg] a change may not leave a tet with a smallest dihedral
+                                  //!< angle below this unless a tet it replaces was already lower
+                                  //!< (so that the pass keeps what remove_slivers achieved); 0 = off
+    bool interface_flips = true;  //!< also flip the interface across a bad tet with two faces on it
+                                  //!< (see remove_slivers); moves the interface by a sliver's
+                                  //!< thickness, so the tissue volumes change by its volume
+    bool surface_moves = true;    //!< let a vertex inside one surface patch (outer boundary or one
+                                  //!< interface, not a curve where they meet) slide along its
+                                  //!< surface triangles, once per pass; the tissue volumes change
+                                  //!< by the chords' sliver (ImproveStats::surface_move_volume)
+};
+
+//! Options of remove_slivers (and of the pass mesh_labels runs after CGAL's optimisers,
+//! MeshParams::slivers).
+struct SliverParams {
+    bool enabled = true;         //!< mesh_labels: run the pass; remove_slivers ignores it
+    double goal = 10;            //!< [deg] the smallest dihedral angle aimed for (the issue's bound);
+                                 //!< a change may not add tets below it
+    double target = 12;          //!< [deg] tets below this are worked on (CGAL's sliver bound)
+    int max_rounds = 8;          //!< as ImproveParams::max_rounds
+    int smoothing_steps = 6;     //!< as ImproveParams::smoothing_steps
+    bool interface_flips = true; //!< a sliver with two faces on one interface (between its tissue
+                                 //!< and one other) is given to the other tissue and the edge
+                                 //!< between those faces removed: a 2-2 flip of the interface
+                                 //!< surface, which moves it by at most the sliver's thickness
+                                 //!< (held below 0.3 of its mean edge) and changes the two
+                                 //!< tissues' volumes by the sliver's volume
+    bool surface_moves = true;   //!< as ImproveParams::surface_moves
 };
 
 //! What improve_quality did. "In the region" counts the tets whose centroid lies in the region
 //! of interest (distance 0, not the margin), as the benchmark does.
+//! For remove_slivers the measure is the smallest dihedral angle [deg] and the goal params.goal.
 struct ImproveStats {
     bool ran = false; //!< mesh_labels: whether the pass ran
+    double goal = 0;  //!< what "below" counts under: 0.3 (combined), or SliverParams::goal [deg]
     std::int64_t tets_in_region_before = 0, tets_in_region_after = 0;
-    std::int64_t below_before = 0, below_after = 0; //!< tets in the region with combined < 0.3
-    double worst_before = 0, worst_after = 0;       //!< smallest combined measure in the region
+    std::int64_t below_before = 0, below_after = 0; //!< tets in the region below the goal (combined < 0.3)
+    double worst_before = 0, worst_after = 0;       //!< smallest measure in the region
     std::int64_t below_after_pinned = 0;            //!< of below_after, tets whose four vertices all
                                                     //!< lie on surfaces (outer boundary, interfaces):
                                                     //!< smoothing cannot move them
@@ -52,13 +82,18 @@ struct ImproveStats {
     std::int64_t edge_removals = 0;                 //!< edge removals done (3-2, 4-4, 5-6, ...)
     std::int64_t vertex_moves = 0;                  //!< smoothing moves accepted
     std::int64_t vertices_inserted = 0;             //!< vertices inserted inside a tissue
+    std::int64_t interface_flips = 0;               //!< 2-2 flips of an interface (see SliverParams)
+    double interface_flip_volume = 0;               //!< [mm^3] volume those flips moved between tissues
+    std::int64_t surface_moves = 0;                 //!< surface vertices slid along their surface
+    double surface_move_volume = 0;                 //!< [mm^3] volume those moves moved between tissues
+                                                    //!< (or out of the mesh, on the outer boundary)
     int rounds = 0;                                 //!< rounds run
     double seconds = 0;                             //!< wall clock
 };
 
 struct ImproveResult {
-    core::TetMesh mesh; //!< the improved mesh: the input's vertices (those on surfaces unmoved),
-                        //!< then the inserted ones; the same tissue sub-domains; positively oriented
+    core::TetMesh mesh; //!< the improved mesh: the input's vertices (those on surfaces moved only
+                        //!< along their surface), then the inserted ones; positively oriented
     ImproveStats stats;
 };
 
@@ -73,5 +108,14 @@ struct ImproveResult {
 //! drop at its border, where a change started inside may replace a worse tet lying outside).
 //! \pre core::mesh_problem(mesh) is empty. \throw core::InvalidInputError otherwise or for bad params.
 ImproveResult improve_quality(const core::TetMesh& mesh, const RegionOfInterest& roi, const ImproveParams& params = {});
+
+//! Raises the smallest dihedral angle of the tets of `mesh` below params.target degrees, over the
+//! whole mesh, with the same operations as improve_quality on that objective (an inverted tet
+//! counts below any angle), plus the interface flip of SliverParams::interface_flips. It is what
+//! lets mesh_labels keep the worst dihedral above 10 degrees where CGAL's perturber stops early
+//! (its parallel mode). The stats' "below" count the tets under params.goal and "worst" is in
+//! degrees; the region is the whole mesh.
+//! \pre core::mesh_problem(mesh) is empty. 	hrow core::InvalidInputError otherwise or for bad params.
+ImproveResult remove_slivers(const core::TetMesh& mesh, const SliverParams& params = {});
 
 } // namespace lobe::mesh

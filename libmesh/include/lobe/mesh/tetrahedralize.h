@@ -44,7 +44,9 @@ struct MeshParams {
     double radius_edge_ratio = 1.9;       //!< bound B on circumradius / shortest edge (< 2, thesis)
     double grading = 1.5;                 //!< max size ratio between neighbours for the ROI sizing
     RegionOfInterest roi;
-    bool perturb = true;                  //!< CGAL sliver perturbation
+    bool perturb = false;                 //!< CGAL's sliver perturbation: off, because the sliver
+                                          //!< pass (slivers) reaches the same angles in a tenth of
+                                          //!< its time (docs/benchmarks.md, meshing)
     bool exude = true;                    //!< CGAL sliver exudation
     bool lloyd = false;                   //!< Lloyd smoothing before perturb/exude (slow)
     bool odt = false;                     //!< ODT smoothing before perturb/exude (slow)
@@ -56,6 +58,9 @@ struct MeshParams {
     bool repair_manifold = true;          //!< relabel the few tets where a tissue (or the whole
                                           //!< mesh) touches itself along an edge or at a vertex,
                                           //!< so that every tissue surface is a manifold
+    SliverParams slivers;                 //!< after CGAL's optimisers and the peeling: flips,
+                                          //!< smoothing and insertion on the tets whose smallest
+                                          //!< dihedral angle is below slivers.target (improve.h)
     ImproveParams improve;                //!< quality improvement on the combined measure inside
                                           //!< the region of interest (improve.h): on by default,
                                           //!< runs only when a region of interest is given
@@ -117,6 +122,7 @@ struct MeshResult {
         std::int64_t tets = 0;
         double volume = 0; //!< [mm^3]
     } peeled;
+    ImproveStats slivers;                   //!< MeshParams::slivers (angles in degrees)
     ImproveStats improvement;               //!< MeshParams::improve (ran = false without a ROI)
     std::string optimisation;               //!< CGAL's perturber and exuder outcomes
     int threads = 1;                        //!< threads used
