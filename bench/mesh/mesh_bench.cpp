@@ -143,14 +143,26 @@ mesh::MeshResult run_lobe(const std::string& scene, const core::LabelImage3D& la
     row.threads = r.threads;
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     fill_quality(row, r.mesh, &p.roi);
+    if (const auto& sl = r.slivers; sl.ran)
+        std::printf("         sliver pass: %.2f s, below %.0f deg %lld -> %lld, worst %.2f -> %.2f deg; %lld 2-3 flips, %lld "
+                    "edge removals, %lld interface flips (%.2f mm^3), %lld moves, %lld surface moves (%.2f mm^3), %lld "
+                    "vertices inserted\n",
+                    sl.seconds, sl.goal, static_cast<long long>(sl.below_before), static_cast<long long>(sl.below_after),
+                    sl.worst_before, sl.worst_after, static_cast<long long>(sl.flips23),
+                    static_cast<long long>(sl.edge_removals), static_cast<long long>(sl.interface_flips),
+                    sl.interface_flip_volume, static_cast<long long>(sl.vertex_moves),
+                    static_cast<long long>(sl.surface_moves), sl.surface_move_volume,
+                    static_cast<long long>(sl.vertices_inserted));
     if (const auto& im = r.improvement; im.ran) {
         row.improve_seconds = im.seconds;
         std::printf("         ROI pass: below 0.3 %lld -> %lld (of which %lld with 4 vertices on surfaces, %lld with a face "
-                    "on one), worst %.3f -> %.3f; %lld 2-3 flips, %lld edge removals, %lld moves, %lld vertices inserted, %d rounds\n",
+                    "on one), worst %.3f -> %.3f; %lld 2-3 flips, %lld edge removals, %lld moves, %lld surface moves, %lld "
+                    "interface flips, %lld vertices inserted, %d rounds\n",
                     static_cast<long long>(im.below_before), static_cast<long long>(im.below_after),
                     static_cast<long long>(im.below_after_pinned), static_cast<long long>(im.below_after_surface_face),
                     im.worst_before, im.worst_after, static_cast<long long>(im.flips23),
                     static_cast<long long>(im.edge_removals), static_cast<long long>(im.vertex_moves),
+                    static_cast<long long>(im.surface_moves), static_cast<long long>(im.interface_flips),
                     static_cast<long long>(im.vertices_inserted), im.rounds);
     }
     for (const auto& t : r.tissues) {
@@ -250,13 +262,21 @@ int main(int argc, char** argv)
         std::vector<mesh::TissueSize> sizes;
         int threads;
         bool roi, peer;
-        bool improve = true; // MeshParams::improve.enabled (acts only with a ROI)
+        bool improve = true;  // MeshParams::improve.enabled (acts only with a ROI)
+        bool perturb = false; // CGAL's perturber (the default until the sliver pass)
+        bool slivers = true;  // MeshParams::slivers.enabled
+        double vessel_distance = 0; // the vessels' boundary tolerance [mm]; 0 = the default
     };
     const std::vector<mesh::TissueSize> small = {{2, 3}, {3, 3}, {4, 5}};
     const std::vector<Config> configs = {
         {"size 7.5, cf 2", 7.5, 2, {}, 2, false, false},
         {"size 10, vessels 3, tumours 5, cf 2", 10, 2, small, 2, false, false},
         {"size 10, vessels 3, tumours 5, cf 2", 10, 2, small, 1, false, true},
+        {"same, CGAL's perturber instead of the sliver pass", 10, 2, small, 1, false, false, true, true, false},
+        {"same, CGAL's perturber and the sliver pass", 10, 2, small, 1, false, false, true, true, true},
+        {"same, neither (exuder only)", 10, 2, small, 1, false, false, true, false, false},
+        {"same, vessels' boundary tolerance 0.5 mm", 10, 2, small, 1, false, false, true, false, true, 0.5},
+        {"same, vessels' boundary tolerance 0.5 mm", 10, 2, small, 2, false, false, true, false, true, 0.5},
         {"same, ROI r 15 mm size 2, no ROI pass", 10, 2, small, 1, true, false, false},
         {"same, ROI r 15 mm size 2", 10, 2, small, 1, true, false, true},
         {"size 10, vessels 3, tumours 5, cf 1", 10, 1, small, 2, false, false},
@@ -268,9 +288,15 @@ int main(int argc, char** argv)
                 continue;
             mesh::MeshParams p;
             p.improve.enabled = c.improve;
+            p.perturb = c.perturb;
+            p.slivers.enabled = c.slivers;
             p.size = c.size;
             p.curvature_factor = c.cf;
             p.tissue_sizes = c.sizes;
+            if (c.vessel_distance > 0)
+                for (auto& t : p.tissue_sizes)
+                    if (t.label == 2 || t.label == 3)
+                        t.facet_distance = c.vessel_distance;
             p.threads = c.threads;
             if (c.roi) {
                 p.roi.kind = mesh::RegionOfInterest::Kind::Spheres;
