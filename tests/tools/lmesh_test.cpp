@@ -239,3 +239,36 @@ TEST(Lmesh, RegionOfInterestRunsTheQualityPassAndRecordsIt)
     for (const auto& [k, v] : prov_off.back().parameters)
         EXPECT_EQ(k.rfind("result.improve.", 0), std::string::npos) << k;
 }
+
+TEST(Lmesh, MeshesTheRealScansLiverAndVeinsWithEveryPieceAndVolume)
+{
+    // The shared CT's reference labels (TotalSegmentator's): liver (5), inferior vena cava (63),
+    // portal and splenic vein (64) on 3 mm voxels, the veins 2-4 voxels across: the issue's
+    // failure case (CGAL alone kept 15% of a portal vein). Default settings (2 threads, so the
+    // mesh varies run to run). Measured: 62-63 k tets in about 2 s end to end, volumes 0.998,
+    // 0.986-0.988, 0.944-0.945, worst dihedral 12.0 degrees, the two 6- and 7-voxel specks of
+    // label 64 dropped and reported. The bounds are the issue's: every piece of 100 voxels or
+    // more meshed, every tissue within 10% of its label volume, worst dihedral above 10 degrees.
+    const auto labels = test::data_dir() / "ct-small" / "labels.mhd";
+    LOBE_REQUIRE_PATH(labels);
+    const auto dir = test::scratch_dir();
+    auto r = lmesh(q(labels) + " --tissues 5,63,64 --quiet -o " + q(dir / "m.h5") + " --report " + q(dir / "m.json"),
+                   dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    std::ifstream f(dir / "m.json");
+    const auto j = nlohmann::json::parse(f);
+    ASSERT_EQ(j["tissues"].size(), 3u);
+    for (const auto& t : j["tissues"]) {
+        const double ratio = t["volume_ratio"].get<double>();
+        std::printf("label %d: %lld voxels, mesh / label volume %.3f, pieces %d/%d, worst dihedral %.2f deg\n",
+                    t["label"].get<int>(), t["voxels"].get<long long>(), ratio, t["components_meshed"].get<int>(),
+                    t["components"].get<int>(), t["quality"]["min_dihedral_deg"].get<double>());
+        EXPECT_NEAR(ratio, 1.0, 0.1) << t["label"];
+        EXPECT_EQ(t["components_meshed"], t["components"]) << t["label"];
+        EXPECT_GT(t["quality"]["min_dihedral_deg"].get<double>(), 10.0) << t["label"];
+    }
+    for (const auto& w : j["warnings"])
+        EXPECT_EQ(w.get<std::string>().find("got no tet"), std::string::npos) << w;
+    for (const auto& s : j["surfaces"])
+        EXPECT_TRUE(s["ok"].get<bool>()) << s["name"];
+}
