@@ -3,11 +3,11 @@
 // and optionally a CSV for the charts (bench/mesh/plot_mesh_bench.py). Results: docs/benchmarks.md.
 //   mesh_bench [--liver LIVER.inr.gz] [--csv OUT.csv] [--no-sweep] [--roi-only]
 //   (default liver: ../shared/data/liver-labels-inr/liver.inr.gz)
-#include "inrimage.h"
 #include "tetgen_peer.h"
 
 #include "lobe/mesh/quality.h"
 #include "lobe/mesh/tetrahedralize.h"
+#include "lobe/io/inrimage.h"
 #include "lphantom/phantom.h"
 
 #include <algorithm>
@@ -242,7 +242,7 @@ int main(int argc, char** argv)
     std::vector<std::pair<std::string, core::LabelImage3D>> scenes;
     if (std::filesystem::exists(inr)) {
         std::string mapping;
-        scenes.emplace_back("cgal", remap(bench::read_inrimage(inr), mapping));
+        scenes.emplace_back("cgal", remap(std::get<core::LabelImage3D>(io::read_inrimage(inr)), mapping));
         const auto& g = scenes.back().second;
         std::printf("cgal liver: %s %d x %d x %d voxels of %.3f x %.3f x %.3f mm; labels %s\n", inr.string().c_str(),
                     g.size[0], g.size[1], g.size[2], g.spacing[0], g.spacing[1], g.spacing[2], mapping.c_str());

@@ -2,6 +2,7 @@
 
 #include "lobe/io/dicom.h"
 #include "lobe/io/hdf5.h"
+#include "lobe/io/inrimage.h"
 #include "lobe/io/metaimage.h"
 #include "lobe/io/nifti.h"
 
@@ -26,6 +27,7 @@ const char* format_name(ImageFormat format)
     case ImageFormat::Nifti: return "NIfTI";
     case ImageFormat::Hdf5: return "HDF5";
     case ImageFormat::Dicom: return "DICOM";
+    case ImageFormat::Inrimage: return "INRIMAGE";
     }
     return "unknown";
 }
@@ -44,9 +46,11 @@ ImageFormat image_format(const std::filesystem::path& path)
         return ImageFormat::Hdf5;
     if (ends_with(name, ".dcm") || ends_with(name, ".dicom"))
         return ImageFormat::Dicom;
+    if (ends_with(name, ".inr") || ends_with(name, ".inr.gz"))
+        return ImageFormat::Inrimage;
     throw core::InvalidInputError(path.string() +
                                   ": unknown image format (expected .mhd, .mha, .nii, .nii.gz, .h5, .hdf5, "
-                                  ".dcm or a DICOM folder)");
+                                  ".inr, .inr.gz, .dcm or a DICOM folder)");
 }
 
 core::AnyImage read_image(const std::filesystem::path& path)
@@ -56,6 +60,7 @@ core::AnyImage read_image(const std::filesystem::path& path)
     case ImageFormat::Nifti: return read_nifti(path);
     case ImageFormat::Hdf5: return read_hdf5_image(path);
     case ImageFormat::Dicom: return read_dicom_series(path).image;
+    case ImageFormat::Inrimage: return read_inrimage(path);
     }
     throw core::InvalidInputError(path.string() + ": unknown image format");
 }
@@ -72,6 +77,9 @@ void write_image(const std::filesystem::path& path, const core::AnyImage& image)
     case ImageFormat::Hdf5: write_hdf5_image(path, image); return;
     case ImageFormat::Dicom:
         throw core::InvalidInputError(path.string() + ": lobe reads DICOM but does not write it; "
+                                                      "choose .mhd, .mha, .nii, .nii.gz or .h5");
+    case ImageFormat::Inrimage:
+        throw core::InvalidInputError(path.string() + ": lobe reads INRIMAGE but does not write it; "
                                                       "choose .mhd, .mha, .nii, .nii.gz or .h5");
     }
 }

@@ -115,6 +115,29 @@ TEST(Lmesh, MeshesALabelImageAndWritesEverything)
     EXPECT_TRUE(fs::exists(dir / "stl" / "tumour.stl"));
 }
 
+TEST(Lmesh, ReadsAnInrimage)
+{
+    // CGAL's example images are INRIMAGE-4: the two balls written as one (a 256-byte header,
+    // then the voxels) mesh like the MetaImage.
+    const auto dir = test::scratch_dir();
+    const auto img = two_tissues();
+    std::string header = "#INRIMAGE-4#{\nXDIM=36\nYDIM=36\nZDIM=30\nVDIM=1\nVX=0.8\nVY=0.8\nVZ=1\n"
+                         "TYPE=unsigned fixed\nPIXSIZE=8 bits\nCPU=decm\n##}\n";
+    header.insert(header.size() - 4, std::string(256 - header.size(), '\n'));
+    std::ofstream(dir / "l.inr", std::ios::binary)
+        << header << std::string(img.data.begin(), img.data.end());
+    const auto r = lmesh(q(dir / "l.inr") + " --size 4 --threads 1 --quiet -o " + q(dir / "m.h5") + " --report " +
+                             q(dir / "m.json"),
+                         dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    std::ifstream f(dir / "m.json");
+    const auto j = nlohmann::json::parse(f);
+    ASSERT_EQ(j["tissues"].size(), 2u);
+    // The same tolerance as the MetaImage run: the voxels, not the format, set the volume.
+    for (const auto& t : j["tissues"])
+        EXPECT_NEAR(t["volume_ratio"].get<double>(), 1.0, 0.1) << t["label"];
+}
+
 TEST(Lmesh, ReadsAContainerAndKeepsItsHistory)
 {
     const auto dir = test::scratch_dir();

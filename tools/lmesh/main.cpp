@@ -247,7 +247,7 @@ int main(int argc, char** argv)
     tools::add_common_options(app, quiet);
     Options o;
     auto& p = o.params;
-    app.add_option("INPUT", o.input, "Label volume: a lobe .h5 (see --labels) or a label image (.mhd, .nii.gz)")
+    app.add_option("INPUT", o.input, "Label volume: a lobe .h5 (see --labels) or a label image (.mhd, .nii.gz, .inr.gz)")
         ->required()
         ->check(CLI::ExistingPath);
     app.add_option("-o,--output", o.output, "Output container (.h5): labels, /meshes/NAME with quality, /surfaces/TISSUE")

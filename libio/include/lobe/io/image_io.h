@@ -8,6 +8,7 @@
 //! | `*.nii`, `*.nii.gz`           | NIfTI-1 (nifti.h)              | yes  | yes   |
 //! | `*.h5`, `*.hdf5`              | lobe HDF5 container (hdf5.h)   | yes  | yes   |
 //! | a folder, `*.dcm`, `*.dicom`  | DICOM series (dicom.h)         | yes  | no    |
+//! | `*.inr`, `*.inr.gz`           | INRIMAGE-4 (inrimage.h)        | yes  | no    |
 
 #include "lobe/core/any_image.h"
 
@@ -16,9 +17,9 @@
 
 namespace lobe::io {
 
-enum class ImageFormat { MetaImage, Nifti, Hdf5, Dicom };
+enum class ImageFormat { MetaImage, Nifti, Hdf5, Dicom, Inrimage };
 
-//! Short name of a format ("MetaImage", "NIfTI", "HDF5", "DICOM").
+//! Short name of a format ("MetaImage", "NIfTI", "HDF5", "DICOM", "INRIMAGE").
 const char* format_name(ImageFormat format);
 
 //! The format a path names, from its extension (or DICOM for a folder).
