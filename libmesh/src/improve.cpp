@@ -10,8 +10,6 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -1052,17 +1050,6 @@ void run_pass(Work& w, const RegionOfInterest& roi, const PassOptions& o, Improv
         if (!w.alive[t] || !(w.q[t] < w.target) || !in_region(static_cast<std::int32_t>(t), 0))
             continue;
         const auto& T = w.tets[t];
-        if (std::getenv("LOBE_DEBUG_SLIVERS")) {
-            std::fprintf(stderr, "left: q %.3f label %d; across:", w.q[t], w.label[t]);
-            for (int i = 0; i < 4; ++i) {
-                const auto ac = w.common(face_opposite(T, i));
-                std::fprintf(stderr, " %d", ac.size() == 1 ? 0 : w.label[static_cast<std::size_t>(ac[0] == std::int32_t(t) ? ac[1] : ac[0])]);
-            }
-            const auto dh = dihedral_angles(w.p(T[0]), w.p(T[1]), w.p(T[2]), w.p(T[3]));
-            std::fprintf(stderr, "; dihedrals");
-            for (double x : dh) std::fprintf(stderr, " %.1f", x * kDeg);
-            std::fprintf(stderr, "\n");
-        }
         st.below_after_pinned +=
             std::all_of(T.begin(), T.end(), [&](auto v) { return w.pinned[static_cast<std::size_t>(v)] != 0; });
         for (int i = 0; i < 4; ++i) {
