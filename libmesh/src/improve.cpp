@@ -5,6 +5,7 @@
 #include "lobe/mesh/improve.h"
 
 #include "lobe/core/errors.h"
+#include "lobe/core/geometry.h"
 #include "lobe/mesh/quality.h"
 
 #include <algorithm>
@@ -84,7 +85,8 @@ constexpr int kMaxRing = 12;
 class Work {
   public:
     Work(const core::TetMesh& m, Objective o, double goal_, double weight, double guard)
-        : pos(m.vertices), orig(m.vertices), tets(m.tets), label(m.tet_labels), objective(o), target(goal_), guard_deg(guard)
+        : pos(m.vertices), orig(m.vertices), tets(m.tets), label(m.tet_labels), objective(o), target(goal_),
+          guard_deg(guard)
     {
         qp.weight = weight;
         alive.assign(tets.size(), 1);
@@ -190,7 +192,6 @@ class Work {
     std::vector<double> q;
     std::vector<std::vector<std::int32_t>> star; // live tets of each vertex
     std::vector<char> pinned;                    // on the outer boundary or on an interface
-    std::vector<char> slid;                      // slid once already (see smooth_vertex)
     std::vector<std::int32_t> free_slots;        // dead tets' indices, reused so that an
                                                  // unchanged mesh keeps its tet order
     QualityParams qp;
@@ -224,20 +225,19 @@ class Work {
                 std::rotate(f.begin(), std::find(f.begin(), f.end(), v), f.end());
                 if (f[1] > f[2])
                     std::swap(f[1], f[2]);
-                const std::int64_t key =
-                    static_cast<std::int64_t>(std::min(lt, other)) << 32 | static_cast<std::uint32_t>(std::max(lt, other));
+                const std::int64_t key = static_cast<std::int64_t>(std::min(lt, other)) << 32 |
+                                         static_cast<std::uint32_t>(std::max(lt, other));
                 if (std::none_of(out.begin(), out.end(), [&](const SurfaceFace& sf) { return sf.f == f; }))
                     out.push_back({key, f});
             }
         }
         return out;
     }
-    // Whether surface vertex v may slide along its surface: all its surface faces on one surface,
-    // forming one closed fan (each neighbour in exactly two of them), so that v lies inside a
-    // surface patch, not on a curve where surfaces meet.
-    bool slides(std::int32_t v) const
+    // Whether a vertex whose surface faces are `fs` may slide along its surface: all of them on one
+    // surface, forming one closed fan (each neighbour in exactly two of them), so that the vertex
+    // lies inside a surface patch, not on a curve where surfaces meet.
+    static bool slides(const std::vector<SurfaceFace>& fs)
     {
-        const auto fs = surface_faces(v);
         if (fs.size() < 3)
             return false;
         std::vector<std::int32_t> ends;
@@ -610,54 +610,28 @@ Vec3 min_norm_in_hull(const std::vector<Vec3>& g)
     return x;
 }
 
-// The point of triangle (a, b, c) closest to p (Ericson, "Real-Time Collision Detection", 5.1.5).
-Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c)
-{
-    const Vec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
-    if (d1 <= 0 && d2 <= 0)
-        return a;
-    const Vec3 bp = p - b;
-    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
-    if (d3 >= 0 && d4 <= d3)
-        return b;
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0)
-        return a + ab * (d1 / (d1 - d3));
-    const Vec3 cp = p - c;
-    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
-    if (d6 >= 0 && d5 <= d6)
-        return c;
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0)
-        return a + ac * (d2 / (d2 - d6));
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    const double den = 1 / (va + vb + vc);
-    return a + ab * (vb * den) + ac * (vc * den);
-}
-
 // Moves vertex v where the worst tet of its star is better: the neighbours' centroid if that is
 // better, then steps along the ascent direction of the worst tets, halving each step until it
-// helps. A vertex on a surface (Work::slides) moves along it: every position is projected onto
-// its surface triangles at the input's positions, so it stays on the surface the mesher made
-// (the new triangles are its chords; an interface flip nearby has replaced some by chords of
-// its own), and the direction is projected onto the patch's tangent plane. `moved_volume` gets the volume that changed tissue. Returns whether v moved.
-bool smooth_vertex(Work& w, std::int32_t v, int steps, double* moved_volume = nullptr)
+// helps. A vertex on a surface, given its surface faces `fan` (Work::slides), moves along it:
+// every position is projected onto those triangles at the input's positions, so it stays on the
+// surface the mesher made (the new triangles are its chords; an interface flip nearby has
+// replaced some by chords of its own), and the direction onto the patch's tangent plane.
+// `moved_volume` gets the volume that changed tissue. Returns whether v moved.
+bool smooth_vertex(Work& w, std::int32_t v, int steps, const std::vector<Work::SurfaceFace>* fan = nullptr,
+                   double* moved_volume = nullptr)
 {
     const auto& s = w.star[static_cast<std::size_t>(v)];
     if (s.empty())
         return false;
     Vec3 x = w.p(v);
-    const bool on_surface = w.pinned[static_cast<std::size_t>(v)] != 0;
+    const bool on_surface = fan != nullptr;
     std::vector<std::array<Vec3, 3>> patch;
     Vec3 normal;
     Vec3 centre;
     if (on_surface) {
         std::vector<std::int32_t> ring;
         const auto o = [&](std::int32_t u) { return w.orig[static_cast<std::size_t>(u)]; };
-        for (const auto& sf : w.surface_faces(v)) {
+        for (const auto& sf : *fan) {
             patch.push_back({o(v), o(sf.f[1]), o(sf.f[2])});
             Vec3 n = cross(w.p(sf.f[1]) - x, w.p(sf.f[2]) - x);
             normal += dot(n, normal) < 0 ? n * -1.0 : n; // the faces' order gives no orientation
@@ -677,7 +651,7 @@ bool smooth_vertex(Work& w, std::int32_t v, int steps, double* moved_volume = nu
         Vec3 best = x;
         double bd = std::numeric_limits<double>::infinity();
         for (const auto& tri : patch) {
-            const Vec3 c = closest_on_triangle(y, tri[0], tri[1], tri[2]);
+            const Vec3 c = core::closest_on_triangle(y, tri[0], tri[1], tri[2]);
             if (const double d = core::distance(c, y); d < bd) {
                 bd = d;
                 best = c;
@@ -933,8 +907,8 @@ bool try_insertion(Work& w, std::int32_t t, int steps)
 
 // What a pass works on and how, from ImproveParams or SliverParams.
 struct PassOptions {
-    double target = 0;   // tets below this are worked on
-    double margin = 0;   // ... when their centroid lies within this of the region
+    double target = 0; // tets below this are worked on
+    double margin = 0; // ... when their centroid lies within this of the region
     int max_rounds = 0;
     bool raise_worst_last = true;
     int smoothing_steps = 0;
@@ -947,7 +921,9 @@ void run_pass(Work& w, const RegionOfInterest& roi, const PassOptions& o, Improv
 {
     st.ran = true;
     st.goal = w.target;
-    w.slid.assign(w.pos.size(), 0);
+    // Surface vertices that slid already (at most once per pass). Only input vertices lie on
+    // surfaces, so the input's count sizes it.
+    std::vector<char> slid(w.pos.size(), 0);
     auto in_region = [&](std::int32_t t, double margin) { return distance_to_region(roi, w.centroid(t)) <= margin; };
     auto tally = [&](std::int64_t& count, std::int64_t& below, double& worst) {
         count = below = 0;
@@ -998,8 +974,7 @@ void run_pass(Work& w, const RegionOfInterest& roi, const PassOptions& o, Improv
                 continue;
             if (best.relabelled >= 0) {
                 ++st.interface_flips;
-                st.interface_flip_volume += std::abs(core::signed_volume(
-                    w.p(T[0]), w.p(T[1]), w.p(T[2]), w.p(T[3])));
+                st.interface_flip_volume += std::abs(core::signed_volume(w.p(T[0]), w.p(T[1]), w.p(T[2]), w.p(T[3])));
             } else {
                 ++(best.edge_removal ? st.edge_removals : st.flips23);
             }
@@ -1008,7 +983,6 @@ void run_pass(Work& w, const RegionOfInterest& roi, const PassOptions& o, Improv
         }
         // Smoothing: each free vertex of a bad tet, once per round.
         std::vector<char> tried(w.pos.size(), 0);
-        w.slid.resize(w.pos.size(), 0);
         for (const auto& [qt, t] : bad_tets())
             for (auto v : w.tets[static_cast<std::size_t>(t)]) {
                 const auto vu = static_cast<std::size_t>(v);
@@ -1017,11 +991,17 @@ void run_pass(Work& w, const RegionOfInterest& roi, const PassOptions& o, Improv
                 tried[vu] = 1;
                 // A surface vertex slides at most once per pass: enough to free the slivers it
                 // pins, and the pass cannot wander along the surface.
-                if (w.pinned[vu] && !(o.surface_moves && !w.slid[vu] && w.slides(v)))
-                    continue;
-                if (smooth_vertex(w, v, o.smoothing_steps, &st.surface_move_volume)) {
+                std::vector<Work::SurfaceFace> fan;
+                if (w.pinned[vu]) {
+                    if (!o.surface_moves || slid[vu])
+                        continue;
+                    fan = w.surface_faces(v);
+                    if (!Work::slides(fan))
+                        continue;
+                }
+                if (smooth_vertex(w, v, o.smoothing_steps, w.pinned[vu] ? &fan : nullptr, &st.surface_move_volume)) {
                     if (w.pinned[vu]) {
-                        w.slid[vu] = 1;
+                        slid[vu] = 1;
                         ++st.surface_moves;
                     } else {
                         ++st.vertex_moves;

@@ -1,6 +1,7 @@
 #include "lobe/mesh/improve.h"
 
 #include "lobe/core/errors.h"
+#include "lobe/core/geometry.h"
 #include "lobe/mesh/quality.h"
 #include "lobe/mesh/surface.h"
 #include "lobe/mesh/tetrahedralize.h"
@@ -238,20 +239,8 @@ double distance_to_surfaces(const std::vector<mesh::TissueSurface>& surfaces, co
     double best = 1e300;
     for (const auto& s : surfaces)
         for (const auto& t : s.surface.triangles) {
-            const Vec3 a = s.surface.vertices[t[0]], b = s.surface.vertices[t[1]], c = s.surface.vertices[t[2]];
-            // Closest point by sampling is not exact; project onto the plane and clamp by
-            // barycentric coordinates instead.
-            const Vec3 n = core::normalized(core::cross(b - a, c - a));
-            const Vec3 q = p - n * core::dot(p - a, n);
-            auto inside = [&](const Vec3& u, const Vec3& v) { return core::dot(core::cross(v - u, q - u), n) >= -1e-12; };
-            if (inside(a, b) && inside(b, c) && inside(c, a)) {
-                best = std::min(best, std::abs(core::dot(p - a, n)));
-                continue;
-            }
-            for (const auto& [u, v] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) {
-                const double s2 = std::clamp(core::dot(p - u, v - u) / core::dot(v - u, v - u), 0.0, 1.0);
-                best = std::min(best, core::distance(p, u + (v - u) * s2));
-            }
+            const auto& v = s.surface.vertices;
+            best = std::min(best, core::distance(p, core::closest_on_triangle(p, v[t[0]], v[t[1]], v[t[2]])));
         }
     return best;
 }
@@ -358,8 +347,8 @@ TEST(RemoveSlivers, InterfaceFlipGivesAFoldedSliverToTheOtherTissue)
     // sliver's volume (1/6 |ab x cd| 0.1 = 0.0667 mm^3) to tissue 2.
     core::TetMesh m;
     // 0 a, 1 b, 2 c, 3 d, 4 Q, 5 P1, 6 P2, 7 P3.
-    m.vertices = {{-1, 0, 0},       {1, 0, 0},         {0, -1, 0.1},        {0, 1, 0.1},
-                  {0, 0, -1.5},     {0.81, 0.36, 0.35}, {0.01, 0.45, 0.91}, {-0.81, -0.23, 0.82}};
+    m.vertices = {{-1, 0, 0},   {1, 0, 0},          {0, -1, 0.1},       {0, 1, 0.1},
+                  {0, 0, -1.5}, {0.81, 0.36, 0.35}, {0.01, 0.45, 0.91}, {-0.81, -0.23, 0.82}};
     m.tets = {{0, 1, 2, 3}, {1, 0, 2, 4}, {0, 1, 3, 4}, {1, 5, 2, 3}, {5, 6, 2, 3}, {6, 7, 2, 3}, {7, 0, 2, 3}};
     for (auto& t : m.tets)
         if (core::signed_volume(m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]], m.vertices[t[3]]) < 0)
@@ -370,8 +359,8 @@ TEST(RemoveSlivers, InterfaceFlipGivesAFoldedSliverToTheOtherTissue)
     sp.surface_moves = false; // every vertex of this small mesh lies on its outer boundary
     sp.interface_flips = false;
     auto r = mesh::remove_slivers(m, sp);
-    std::printf("without: worst %.2f -> %.2f deg, %lld vertices inserted, %lld other changes\n",
-                r.stats.worst_before, r.stats.worst_after, static_cast<long long>(r.stats.vertices_inserted),
+    std::printf("without: worst %.2f -> %.2f deg, %lld vertices inserted, %lld other changes\n", r.stats.worst_before,
+                r.stats.worst_after, static_cast<long long>(r.stats.vertices_inserted),
                 static_cast<long long>(r.stats.edge_removals + r.stats.flips23 + r.stats.vertex_moves));
     const double worst0 = r.stats.worst_before;
     EXPECT_LT(worst0, 10);

@@ -25,6 +25,18 @@ test::ToolRun lmesh(const std::string& args, const fs::path& scratch)
     return test::run_tool(LMESH_EXE, args, scratch);
 }
 
+// The parameters lmesh recorded in the last provenance entry of `file`.
+std::map<std::string, std::string> recorded_parameters(const fs::path& file)
+{
+    // Held in a variable: in a range-for over provenance().back().parameters the vector would
+    // die before the loop runs.
+    const auto provenance = io::Hdf5Reader(file).provenance();
+    std::map<std::string, std::string> params;
+    for (const auto& [k, v] : provenance.back().parameters)
+        params[k] = v;
+    return params;
+}
+
 // Liver (1): a 20 mm ball; tumour (4): a 6 mm ball inside it; on 0.8 mm voxels.
 core::LabelImage3D two_tissues()
 {
@@ -124,8 +136,7 @@ TEST(Lmesh, ReadsAnInrimage)
     std::string header = "#INRIMAGE-4#{\nXDIM=36\nYDIM=36\nZDIM=30\nVDIM=1\nVX=0.8\nVY=0.8\nVZ=1\n"
                          "TYPE=unsigned fixed\nPIXSIZE=8 bits\nCPU=decm\n##}\n";
     header.insert(header.size() - 4, std::string(256 - header.size(), '\n'));
-    std::ofstream(dir / "l.inr", std::ios::binary)
-        << header << std::string(img.data.begin(), img.data.end());
+    std::ofstream(dir / "l.inr", std::ios::binary) << header << std::string(img.data.begin(), img.data.end());
     const auto r = lmesh(q(dir / "l.inr") + " --size 4 --threads 1 --quiet -o " + q(dir / "m.h5") + " --report " +
                              q(dir / "m.json"),
                          dir);
@@ -203,10 +214,7 @@ TEST(Lmesh, SliverPassRunsByDefaultAndRecordsIt)
     auto r = lmesh(common + " -o " + q(dir / "on.h5") + " --report " + q(dir / "on.json"), dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find("removing slivers"), std::string::npos) << r.err;
-    std::map<std::string, std::string> params;
-    const auto prov_on = io::Hdf5Reader(dir / "on.h5").provenance(); // held: back() refers into it
-    for (const auto& [k, v] : prov_on.back().parameters)
-        params[k] = v;
+    auto params = recorded_parameters(dir / "on.h5");
     ASSERT_EQ(params.count("result.slivers.seconds"), 1u);
     const double before = std::stod(params["result.slivers.min_dihedral_before_deg"]);
     const double after = std::stod(params["result.slivers.min_dihedral_after_deg"]);
@@ -223,8 +231,7 @@ TEST(Lmesh, SliverPassRunsByDefaultAndRecordsIt)
     EXPECT_EQ(j["slivers"]["below_goal_after"].get<int>(), 0);
     r = lmesh(common + " --no-slivers -o " + q(dir / "off.h5"), dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    const auto prov_off = io::Hdf5Reader(dir / "off.h5").provenance();
-    for (const auto& [k, v] : prov_off.back().parameters)
+    for (const auto& [k, v] : recorded_parameters(dir / "off.h5"))
         EXPECT_EQ(k.rfind("result.slivers.", 0), std::string::npos) << k;
     r = lmesh(common + " --sliver-target 5 -o " + q(dir / "bad.h5"), dir);
     EXPECT_NE(r.exit_code, 0);
@@ -241,10 +248,7 @@ TEST(Lmesh, RegionOfInterestRunsTheQualityPassAndRecordsIt)
     auto r = lmesh(common + " -o " + q(dir / "on.h5") + " --report " + q(dir / "on.json"), dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find("ROI quality pass"), std::string::npos) << r.err;
-    std::map<std::string, std::string> params;
-    const auto prov_on = io::Hdf5Reader(dir / "on.h5").provenance();
-    for (const auto& [k, v] : prov_on.back().parameters)
-        params[k] = v;
+    auto params = recorded_parameters(dir / "on.h5");
     EXPECT_EQ(params["improve-target"].empty(), false);
     ASSERT_EQ(params.count("result.improve.seconds"), 1u);
     // The pass never lowers the ROI's worst tet nor, in its first stage, adds tets below 0.3;
@@ -258,8 +262,7 @@ TEST(Lmesh, RegionOfInterestRunsTheQualityPassAndRecordsIt)
               j["roi_improvement"]["roi_min_combined_before"].get<double>());
     r = lmesh(common + " --no-improve -o " + q(dir / "off.h5"), dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    const auto prov_off = io::Hdf5Reader(dir / "off.h5").provenance();
-    for (const auto& [k, v] : prov_off.back().parameters)
+    for (const auto& [k, v] : recorded_parameters(dir / "off.h5"))
         EXPECT_EQ(k.rfind("result.improve.", 0), std::string::npos) << k;
 }
 
@@ -275,8 +278,8 @@ TEST(Lmesh, MeshesTheRealScansLiverAndVeinsWithEveryPieceAndVolume)
     const auto labels = test::data_dir() / "ct-small" / "labels.mhd";
     LOBE_REQUIRE_PATH(labels);
     const auto dir = test::scratch_dir();
-    auto r = lmesh(q(labels) + " --tissues 5,63,64 --quiet -o " + q(dir / "m.h5") + " --report " + q(dir / "m.json"),
-                   dir);
+    auto r =
+        lmesh(q(labels) + " --tissues 5,63,64 --quiet -o " + q(dir / "m.h5") + " --report " + q(dir / "m.json"), dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
     std::ifstream f(dir / "m.json");
     const auto j = nlohmann::json::parse(f);
