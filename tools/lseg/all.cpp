@@ -80,7 +80,7 @@ int run_all(AllOptions& o, const tools::Progress& progress, tools::RunRecord& re
         add_vessel_provenance(prov, vr);
         add_tumour_provenance(prov, tr);
         io::Hdf5Writer h5(o.out);
-        h5.write_image("image", volume);
+        h5.write_image("image", in.source);
         h5.write_labels("tissues", tissues, tissue_table());
         h5.write_graph("vessels", vr.graph);
         if (h5_input)

@@ -77,7 +77,9 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         p.snake.competition = seg::CompetitionMode::Off;
     p.post.convention = o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
 
-    const core::ImageF volume = timings.time("read image", [&] { return core::convert_image<float>(read_any(o.image, o.image_name)); });
+    // The container keeps the image in its own type (a CT stays int16, half the bytes of float).
+    const core::AnyImage source = timings.time("read image", [&] { return read_any(o.image, o.image_name); });
+    const core::ImageF volume = core::convert_image<float>(source);
     std::unique_ptr<seg::ShapeMemory> memory;
     if (!o.shape.empty())
         memory = std::make_unique<seg::ShapeMemory>(timings.time("read shape memory", [&] { return read_shape_memory(o.shape); }));
@@ -126,7 +128,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                                 (p.use_3d_pass ? "3d-pass " : "") +
                                 (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
-        h5.write_image("image", volume);
+        h5.write_image("image", source);
         h5.write_labels("liver", r.mask, {{1, "liver"}});
         h5.write_labels("liver_slices", r.stacked, {{1, "liver (slice by slice, before the 3-D pass)"}});
         h5.write_provenance(prov);

@@ -104,8 +104,8 @@ StructureInput read_structure_input(const fs::path& image, const std::string& im
 {
     StructureInput in;
     in.h5_input = io::image_format(image) == io::ImageFormat::Hdf5;
-    in.volume = timings.time("read image",
-                             [&] { return core::convert_image<float>(read_any(image, in.h5_input ? image_name : "")); });
+    in.source = timings.time("read image", [&] { return read_any(image, in.h5_input ? image_name : ""); });
+    in.volume = core::convert_image<float>(in.source);
     in.liver = obtain_liver(image, in.volume, source, progress, timings, in.liver_from);
     progress.message("liver mask: " + in.liver_from);
     return in;

@@ -39,7 +39,8 @@ core::LabelImage3D obtain_liver(const std::filesystem::path& image_path, const c
 //! the liver mask found for it (obtain_liver), with where it came from.
 struct StructureInput {
     bool h5_input = false;    //!< the image came from a lobe .h5 (its provenance is carried over)
-    core::ImageF volume;
+    core::AnyImage source;    //!< the image as read, in its own type (what the container stores)
+    core::ImageF volume;      //!< the same as float, what the methods work on
     core::LabelImage3D liver;
     std::string liver_from;   //!< obtain_liver's `how`
 };

@@ -61,7 +61,7 @@ int run_tumours(TumourOptions& o, const tools::Progress& progress, tools::RunRec
         prov.parameters.emplace_back("vessel_mask", vessels_from);
         add_tumour_provenance(prov, r);
         io::Hdf5Writer h5(o.out);
-        h5.write_image("image", volume);
+        h5.write_image("image", in.source);
         h5.write_labels("liver", liver, {{1, "liver"}});
         h5.write_labels("tumours", r.mask, {{seg::kTumourLabel, "tumour"}});
         if (h5_input)

@@ -52,7 +52,7 @@ int run_vessels(VesselOptions& o, const tools::Progress& progress, tools::RunRec
         prov.parameters.emplace_back("liver_mask", liver_from);
         add_vessel_provenance(prov, r);
         io::Hdf5Writer h5(o.out);
-        h5.write_image("image", volume);
+        h5.write_image("image", in.source);
         h5.write_labels("liver", liver, {{1, "liver"}});
         h5.write_labels("vessels", r.labels, {{2, "portal_vein"}, {3, "hepatic_veins"}});
         h5.write_graph("vessels", r.graph);
