@@ -44,6 +44,10 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
         EXPECT_TRUE(fs::exists(dir / "pictures" / (std::string("liver-") + view + ".png"))) << view;
 
     const io::Hdf5Reader h5(out);
+    // The container keeps the CT as it was read (int16 HU), not the float copy the methods use.
+    const core::AnyImage stored = h5.read_image("image");
+    ASSERT_TRUE(std::holds_alternative<core::ImageI16>(stored));
+    EXPECT_TRUE(std::get<core::ImageI16>(stored).data == std::get<core::ImageI16>(io::read_image(dir / "ph" / "ct.mhd")).data);
     const auto labels = h5.labels();
     EXPECT_NE(std::find(labels.begin(), labels.end(), "liver"), labels.end());
     EXPECT_NE(std::find(labels.begin(), labels.end(), "liver_slices"), labels.end());

@@ -171,7 +171,7 @@ TEST(LsegVessels, RealScansUnenhancedAndPortalVenous)
     const io::Hdf5Reader h5(dir / "dicom.h5");
     const auto vessels = h5.read_labels("vessels").image;
     const auto liver = h5.read_labels("liver").image;
-    const auto image = std::get<core::ImageF>(h5.read_image("image"));
+    const auto image = core::convert_image<float>(h5.read_image("image"));
     std::vector<float> in_vessels, in_liver;
     std::size_t outside = 0;
     for (std::size_t u = 0; u < vessels.data.size(); ++u) {
