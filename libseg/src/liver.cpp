@@ -277,11 +277,14 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     const double px = pixel_area_mm2(g);
     core::LabelImage3D init = on_grid(start, g);
     core::LabelImage3D templ;
+    core::LabelImage3D region; // the liver-like layer on the slice, where the pressure acts
     if (previous) {
         templ = on_grid(*previous, g);
         const Window ww = window_around(templ, p.window_margin_mm);
         const core::ImageF img_w = crop(img, ww);
         const core::LabelImage3D layer = liver_layer(c, gaussian_smooth(img_w, 1.0));
+        region = core::LabelImage3D(g, 0);
+        paste(layer, ww, region);
         const core::LabelImage3D lines = cut_lines(img_w, p.snake.edge);
         const core::LabelImage3D shrunk = crop(shrink(templ, p.erosion_mm), ww);
         // The rim: the shrunk previous contour's outermost two pixels.
@@ -321,7 +324,9 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     if (previous)
         sp.level_set.max_iterations = p.propagation_max_iterations;
     const core::LabelImage3D templ_w = previous ? crop(templ, w) : core::LabelImage3D();
-    const SnakeResult r = segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr);
+    const core::LabelImage3D region_w = previous && p.layer_holds_pressure ? crop(region, w) : core::LabelImage3D();
+    const SnakeResult r = segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr,
+                                        region_w.data.empty() ? nullptr : &region_w);
     out.mask = core::LabelImage3D(g, 0);
     paste(r.mask, w, out.mask);
     out.report.iterations = r.iterations;

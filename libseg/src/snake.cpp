@@ -168,6 +168,7 @@ struct Context {
     std::optional<core::ImageF> template_sdf;
     core::LabelImage3D aoi;          //!< empty without a template
     VectorField directions;          //!< DSG preferred normals (empty without a template)
+    const core::LabelImage3D* region = nullptr; //!< pressure acts only inside (null: everywhere)
 };
 
 struct Terms {
@@ -305,6 +306,10 @@ Run run_once(const Context& ctx, float weight)
     case SnakeMethod::Ggvf: t = ggvf_terms(ctx, f); break;
     case SnakeMethod::Gac: t = gac_terms(ctx, f); break;
     }
+    if (ctx.region && t.has_pressure)
+        for (std::size_t i = 0; i < t.pressure.data.size(); ++i)
+            if (!ctx.region->data[i])
+                t.pressure.data[i] = 0.f;
     Run r;
     r.field_seconds = seconds_since(t0);
 
@@ -334,7 +339,7 @@ double fraction_outside(const core::LabelImage3D& mask, const core::LabelImage3D
 } // namespace
 
 SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& init, const SnakeParams& params,
-                          const core::LabelImage3D* templ)
+                          const core::LabelImage3D* templ, const core::LabelImage3D* region)
 {
     if (image.data.empty() || image.voxel_count() != image.data.size())
         throw core::InvalidInputError("segment_snake: the image is empty or its data does not match its size");
@@ -342,13 +347,15 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
         throw core::InvalidInputError("segment_snake: the initial mask is not on the image's grid");
     if (templ && !core::same_grid(image, *templ))
         throw core::InvalidInputError("segment_snake: the template mask is not on the image's grid");
+    if (region && !core::same_grid(image, *region))
+        throw core::InvalidInputError("segment_snake: the region mask is not on the image's grid");
     if (params.aoi_width_mm <= 0 || !std::isfinite(params.aoi_width_mm))
         throw core::InvalidInputError("segment_snake: aoi_width_mm must be positive");
 
     const auto t0 = Clock::now();
     const core::ImageF phi0 = initial_level_set(init); // throws for an empty or full mask
     EdgeMapResult edges = edge_map(image, params.edge); // throws for non-finite values
-    Context ctx{params, phi0, std::move(edges), std::nullopt, {}, {}};
+    Context ctx{params, phi0, std::move(edges), std::nullopt, {}, {}, region};
 
     const bool competition_possible = templ != nullptr && params.competition != CompetitionMode::Off;
     if (templ) {

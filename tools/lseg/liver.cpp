@@ -23,7 +23,8 @@ struct LiverOptions {
     fs::path image, out, mask_out, png_dir, shape;
     std::string image_name = "ct";
     std::string convention = "sliver07";
-    bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false, no_shape_memory = false, no_3d_pass = false;
+    bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false, no_shape_memory = false, no_3d_pass = false,
+         layer_stop = false;
     seg::LiverParams params;
 };
 
@@ -73,6 +74,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_rib_cage = !o.no_rib_cage;
     p.use_shape_memory = !o.no_shape_memory;
     p.use_3d_pass = !o.no_3d_pass;
+    p.layer_holds_pressure = o.layer_stop;
     if (o.no_competition)
         p.snake.competition = seg::CompetitionMode::Off;
     p.post.convention = o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
@@ -125,7 +127,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_iteration_bound", std::to_string(bounded));
         param("components", std::string(p.use_start_slice ? "start-slice " : "") + (p.use_kmeans ? "kmeans " : "") +
                                 (p.use_rib_cage ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
-                                (p.use_3d_pass ? "3d-pass " : "") +
+                                (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                                 (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", source);
@@ -170,6 +172,12 @@ Command add_liver(CLI::App& lseg)
     cmd->add_flag("--no-rib-cage", o->no_rib_cage, "Ablation: no rib cage ring");
     cmd->add_flag("--no-shape-memory", o->no_shape_memory, "Ablation: ignore --shape");
     cmd->add_flag("--no-3d-pass", o->no_3d_pass, "Ablation: keep the slice-by-slice stack");
+    cmd->add_flag("--layer-stop", o->layer_stop,
+                  "Experiment: the snake's pressure acts only inside the liver-like layer on propagated slices");
+    cmd->add_option("--max-iterations", o->params.propagation_max_iterations,
+                    "Level-set iteration bound on a propagated slice")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
     cmd->add_option("--max-growth", o->params.max_growth_per_mm,
                     "Without a shape memory: how far the contour may move out between slices, per mm of slice gap")
         ->capture_default_str()

@@ -64,6 +64,9 @@ struct LiverParams {
     double seed_window_mm = 60.0;   //!< ... and the seed's box widened by this on the seed slice
     int propagation_max_iterations = 200; //!< level-set bound on a propagated slice (the front
                                     //!< travels only erosion_mm + the growth bound)
+    bool layer_holds_pressure = false; //!< on a propagated slice the snake's pressure acts only
+                                    //!< inside the liver-like layer; off: it lost 19 points on a
+                                    //!< phantom by following the kidney (docs/algorithms/liver.md)
     bool parallel_directions = true; //!< propagate up and down on two threads
 
     // The pipeline's components (segment_liver); each can be switched off for the ablation.

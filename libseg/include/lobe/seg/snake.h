@@ -83,9 +83,11 @@ struct SnakeResult {
 //! Segments `image` (raw intensities, e.g. HU; windowed by params.edge.window) starting from the
 //! contour of `init` (non-zero = inside). `templ` (may be null) is the expected shape, normally
 //! the previous slice's result: it defines the AOI for energy competition and the preferred edge
-//! directions for DSG. \throw InvalidInputError on grid mismatch, an empty or full `init`, or
-//! non-finite image values.
+//! directions for DSG. `region` (may be null) confines the pressure: outside it the pressure is
+//! zero and the front is moved only by curvature and the edge field, so it stops at the region's
+//! border (the liver pipeline can pass the slice's liver-like layer). \throw InvalidInputError on
+//! grid mismatch, an empty or full `init`, or non-finite image values.
 SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& init, const SnakeParams& params = {},
-                          const core::LabelImage3D* templ = nullptr);
+                          const core::LabelImage3D* templ = nullptr, const core::LabelImage3D* region = nullptr);
 
 } // namespace lobe::seg
