@@ -17,6 +17,23 @@ void shuffle_bytes(const unsigned char* in, unsigned char* out, std::size_t byte
     }
 }
 
+void unshuffle_bytes(const unsigned char* in, unsigned char* out, std::size_t bytes, std::size_t element_size)
+{
+    const std::size_t n = bytes / element_size;
+    for (std::size_t k = 0; k < element_size; ++k) {
+        const unsigned char* plane = in + k * n;
+        unsigned char* dst = out + k;
+        for (std::size_t i = 0; i < n; ++i)
+            dst[i * element_size] = plane[i];
+    }
+}
+
+bool inflate_exactly(const unsigned char* in, std::size_t in_bytes, unsigned char* out, std::size_t out_bytes)
+{
+    uLongf n = static_cast<uLongf>(out_bytes);
+    return uncompress(out, &n, in, static_cast<uLong>(in_bytes)) == Z_OK && n == out_bytes;
+}
+
 std::uint32_t fletcher32(const unsigned char* data, std::size_t bytes)
 {
     std::size_t words = bytes / 2;

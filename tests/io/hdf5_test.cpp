@@ -619,6 +619,70 @@ TEST(Hdf5Container, FilteredChunksAreTheBytesHdf5ItselfWrites)
     EXPECT_EQ(back.triangles, grid.triangles);
 }
 
+// The reader unfilters the chunks of large datasets on every core itself. It must decode what
+// HDF5 decodes (every filter set it knows, edge chunks) and, for anything else or anything broken,
+// give HDF5's own answer: values or the same error.
+TEST(Hdf5Container, ChunksReadInParallelAsHdf5ReadsThem)
+{
+    const fs::path dir = lobe::test::scratch_dir();
+    const auto g = oblique_geometry(130, 129, 35); // 2 x 2 x 2 chunks of int16, with edge chunks
+    const auto ct = pattern_image<std::int16_t>(g);
+    write_hdf5_image(dir / "ct.h5", ct, "ct");
+    // The same values rewritten by HDF5 itself under other filter sets: deflate without shuffle,
+    // the checksum alone, and shuffle without deflate (which the fast path leaves to HDF5).
+    const std::vector<std::vector<H5Z_filter_t>> sets{
+        {H5Z_FILTER_DEFLATE}, {H5Z_FILTER_FLETCHER32}, {H5Z_FILTER_SHUFFLE}, {H5Z_FILTER_DEFLATE, H5Z_FILTER_FLETCHER32}};
+    int k = 0;
+    for (const auto& set : sets) {
+        const fs::path p = dir / ("set" + std::to_string(k++) + ".h5");
+        fs::copy_file(dir / "ct.h5", p, fs::copy_options::overwrite_existing);
+        {
+            H5Id f = open_rw(p);
+            EXPECT_GE(H5Ldelete(f, "/images/ct", H5P_DEFAULT), 0);
+            const hsize_t dims[3] = {35, 129, 130}, chunk[3] = {32, 128, 128};
+            H5Id space(H5Screate_simple(3, dims, nullptr), H5Sclose);
+            H5Id dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+            H5Pset_chunk(dcpl, 3, chunk);
+            for (H5Z_filter_t id : set) {
+                if (id == H5Z_FILTER_DEFLATE)
+                    H5Pset_deflate(dcpl, 6);
+                else if (id == H5Z_FILTER_SHUFFLE)
+                    H5Pset_shuffle(dcpl);
+                else
+                    H5Pset_fletcher32(dcpl);
+            }
+            H5Id ds(H5Dcreate2(f, "/images/ct", H5T_STD_I16LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), H5Dclose);
+            ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_INT16, H5S_ALL, H5S_ALL, H5P_DEFAULT, ct.data.data()), 0);
+            put_double_attr(ds, "spacing", {g.spacing[0], g.spacing[1], g.spacing[2]});
+            put_double_attr(ds, "origin", {g.origin[0], g.origin[1], g.origin[2]});
+            put_double_attr(ds, "direction", std::vector<double>(g.direction.begin(), g.direction.end()));
+        }
+        EXPECT_TRUE(same_bytes(read_hdf5_image(p, "ct"), ct)) << "filter set " << k - 1;
+    }
+    EXPECT_TRUE(same_bytes(read_hdf5_image(dir / "ct.h5", "ct"), ct));
+
+    // A flipped byte in the middle of a stored chunk (the third of eight): the checksum fails,
+    // and the read is HDF5's error, not data.
+    haddr_t addr = 0;
+    hsize_t size = 0;
+    {
+        H5Id f(H5Fopen((dir / "ct.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+        H5Id ds(H5Dopen2(f, "/images/ct", H5P_DEFAULT), H5Dclose);
+        hsize_t offset[3] = {0, 128, 0};
+        unsigned mask = 0;
+        ASSERT_GE(H5Dget_chunk_info_by_coord(ds, offset, &mask, &addr, &size), 0);
+    }
+    {
+        const auto at = static_cast<std::streamoff>(addr + size / 2);
+        std::fstream f(dir / "ct.h5", std::ios::in | std::ios::out | std::ios::binary);
+        f.seekg(at);
+        const int c = f.get();
+        f.seekp(at);
+        f.put(static_cast<char>(c ^ 0x40));
+    }
+    EXPECT_LOBE_ERROR(IoError, read_hdf5_image(dir / "ct.h5", "ct"), (dir / "ct.h5").string() + ": /images/ct: cannot read data");
+}
+
 TEST(Hdf5Container, CorruptedChunkIsAnIoErrorNotWrongData)
 {
     const fs::path p = lobe::test::scratch_dir() / "c.h5";

@@ -14,6 +14,13 @@ namespace lobe::io::detail {
 //! `bytes` is a multiple of `element_size`; `out` holds `bytes` bytes.
 void shuffle_bytes(const unsigned char* in, unsigned char* out, std::size_t bytes, std::size_t element_size);
 
+//! The inverse of shuffle_bytes.
+void unshuffle_bytes(const unsigned char* in, unsigned char* out, std::size_t bytes, std::size_t element_size);
+
+//! Inflates a zlib stream of `in_bytes` into exactly `out_bytes`; false if the stream is corrupt
+//! or does not decode to exactly that many bytes.
+bool inflate_exactly(const unsigned char* in, std::size_t in_bytes, unsigned char* out, std::size_t out_bytes);
+
 //! Fletcher-32 as HDF5 computes it (H5_checksum_fletcher32, not part of HDF5's public API):
 //! big-endian 16-bit words, both sums folded every 360 words, an odd last byte as a high byte.
 std::uint32_t fletcher32(const unsigned char* data, std::size_t bytes);
