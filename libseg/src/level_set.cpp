@@ -5,6 +5,8 @@
 #include "lobe/seg/distance_transform.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -134,6 +136,9 @@ void check_params(const LevelSetParams& p)
         fail("check_interval and convergence_checks must be at least 1");
     if (!(p.convergence_tolerance >= 0.0) || !std::isfinite(p.convergence_tolerance))
         fail("convergence_tolerance must be finite and >= 0");
+    if (p.leak_checks < 0 || !(p.leak_slowdown > 0.0 && p.leak_slowdown <= 1.0) || !(p.leak_rise >= 1.0) ||
+        !std::isfinite(p.leak_rise))
+        fail("leak_checks must be >= 0, leak_slowdown in (0, 1] and leak_rise finite and >= 1");
 }
 
 // ---------------------------------------------------------------------------- the evolution
@@ -183,6 +188,13 @@ class Evolver {
     //! The convergence measure over the interval since the previous check.
     double check();
 
+    //! The net growth over the interval the last check() measured: voxels that became inside
+    //! minus those that became outside, per boundary voxel.
+    double growth() const { return growth_; }
+
+    //! The current φ (valid until the next step).
+    const float* current() const { return cur_; }
+
     //! Leaves the latest φ in the result image.
     void finish()
     {
@@ -217,6 +229,7 @@ class Evolver {
         const auto u = static_cast<std::size_t>(v);
         if ((cur_[u] < 0.f) != ((flags_[u] & kSnapInside) != 0)) {
             ++pending_changes_;
+            pending_grew_ += cur_[u] < 0.f;
             flags_[u] ^= kSnapInside;
         }
     }
@@ -250,6 +263,8 @@ class Evolver {
     std::vector<BandVoxel> band_;
     std::vector<BandVoxel> spare_band_; // the next band is built here, then swapped in
     Index pending_changes_ = 0;         // status changes of voxels that left the band since the last check
+    Index pending_grew_ = 0;            // ... of them, those that became inside
+    double growth_ = 0.0;               // net growth at the last check, per boundary voxel
 };
 
 // Δt = cfl / max over the grid of the sum of the terms' explicit stability rates: advection
@@ -428,14 +443,15 @@ double Evolver::check()
     const auto nb = static_cast<Index>(band_.size());
     const float* p = cur_;
     const Index sy = g_.stride[1], sz = g_.stride[2];
-    Index changed = 0, boundary = 0;
-#pragma omp parallel for schedule(static) reduction(+ : changed, boundary) if (nb >= kParallelBand)
+    Index changed = 0, boundary = 0, grew = 0;
+#pragma omp parallel for schedule(static) reduction(+ : changed, boundary, grew) if (nb >= kParallelBand)
     for (Index b = 0; b < nb; ++b) {
         const BandVoxel& bv = band_[static_cast<std::size_t>(b)];
         const auto v = static_cast<std::size_t>(bv.idx);
         const bool in = p[v] < 0.f;
         if (in != ((flags_[v] & kSnapInside) != 0)) {
             ++changed;
+            grew += in;
             flags_[v] ^= kSnapInside;
         }
         if (in) {
@@ -447,8 +463,11 @@ double Evolver::check()
         }
     }
     changed += pending_changes_;
-    pending_changes_ = 0;
-    return double(changed) / double(std::max<Index>(boundary, 1));
+    grew += pending_grew_;
+    pending_changes_ = pending_grew_ = 0;
+    const double per = 1.0 / double(std::max<Index>(boundary, 1));
+    growth_ = double(2 * grew - changed) * per; // voxels that joined minus those that left
+    return double(changed) * per;
 }
 
 std::uint8_t Evolver::neighbour_bits(int i, int j, int k) const
@@ -704,6 +723,13 @@ LevelSetResult evolve_level_set(const ImageF& phi0, const SpeedTerms& terms, con
     r.time_step = ev.dt();
     bool alive = ev.redistance(true);
     int streak = 0;
+    // Leak stop: the lowest convergence measure so far, the state then, and the checks since
+    // the measure rose well above it.
+    double peak = 0.0, lowest = std::numeric_limits<double>::infinity();
+    std::vector<float> at_lowest;
+    int lowest_iteration = 0, rising = 0;
+    double previous_growth = 0.0;
+    bool leaked = false;
     for (int it = 1; alive && it <= params.max_iterations; ++it) {
         bool near_edge = false;
         alive = ev.step(near_edge);
@@ -721,9 +747,35 @@ LevelSetResult evolve_level_set(const ImageF& phi0, const SpeedTerms& terms, con
                 r.converged = true;
                 break;
             }
+            if (params.leak_checks > 0) {
+                const double g = ev.growth();
+                peak = std::max(peak, g);
+                if (g < lowest) {
+                    lowest = g;
+                    lowest_iteration = it;
+                    at_lowest.assign(ev.current(), ev.current() + r.phi.data.size());
+                    rising = 0;
+                } else if (lowest < params.leak_slowdown * peak && g > previous_growth) {
+                    // A leak spreads: it grows its own front, so its growth rises check after check.
+                    if (++rising >= params.leak_checks && g > std::max(params.leak_rise * lowest, params.convergence_tolerance)) {
+                        leaked = true;
+                        break;
+                    }
+                } else {
+                    rising = 0;
+                }
+                previous_growth = g;
+            }
         }
     }
     ev.finish();
+    if (leaked) {
+        // The front had slowed down at the edges and is now speeding up again through a gap:
+        // return it as it was when it moved least.
+        std::copy(at_lowest.begin(), at_lowest.end(), r.phi.data.begin());
+        r.leak_stopped = true;
+        r.leak_iteration = lowest_iteration;
+    }
     r.mask = core::LabelImage3D(r.phi.geometry(), 0);
     for (std::size_t v = 0; v < r.phi.data.size(); ++v)
         r.mask.data[v] = r.phi.data[v] < 0.f ? 1 : 0;

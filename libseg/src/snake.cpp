@@ -389,6 +389,7 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
     out.phi = std::move(run.ls.phi);
     out.iterations = run.ls.iterations;
     out.converged = run.ls.converged;
+    out.leak_stopped = run.ls.leak_stopped;
     return out;
 }
 

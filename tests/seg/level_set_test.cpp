@@ -485,6 +485,12 @@ TEST(LevelSet, RejectsBadInput)
         p = {};
         p.cfl = 1.5;
         EXPECT_LOBE_ERROR(core::InvalidInputError, seg::evolve_level_set(phi0, SpeedTerms{}, p), "cfl");
+        p = {};
+        p.leak_rise = 0.5; // a "rise" to half the lowest growth would fire at once
+        EXPECT_LOBE_ERROR(core::InvalidInputError, seg::evolve_level_set(phi0, SpeedTerms{}, p), "leak_rise");
+        p = {};
+        p.leak_slowdown = 0.0;
+        EXPECT_LOBE_ERROR(core::InvalidInputError, seg::evolve_level_set(phi0, SpeedTerms{}, p), "leak_slowdown");
     }
     EXPECT_LOBE_ERROR(core::InvalidInputError, seg::evolve_level_set(core::ImageF{}, SpeedTerms{}), "phi0");
 }

@@ -178,17 +178,33 @@ TEST(Snake, WeakEdgeLeaksForGacNotForCdsg)
     const auto truth = mask_of(g, disc(cx, cy, r));
     const auto init = mask_of(g, disc(cx, cy, 8));
 
-    const auto cdsg = run(SnakeMethod::Cdsg, img, init);
-    const auto gac = run(SnakeMethod::Gac, img, init);
+    // The methods themselves, without the leak stop (which would end the GAC's leak, see below).
+    seg::SnakeParams no_stop;
+    no_stop.level_set.leak_checks = 0;
+    const auto cdsg = run(SnakeMethod::Cdsg, img, init, no_stop);
+    const auto gac = run(SnakeMethod::Gac, img, init, no_stop);
+    const auto stopped = run(SnakeMethod::Gac, img, init);
     std::cout << "weak edge: CDSG dice " << dice(cdsg.mask, truth) << " spill " << spill(cdsg.mask, truth)
               << " it " << cdsg.iterations << "; GAC dice " << dice(gac.mask, truth) << " spill "
-              << spill(gac.mask, truth) << " it " << gac.iterations << "\n";
+              << spill(gac.mask, truth) << " it " << gac.iterations << "; GAC with the leak stop dice "
+              << dice(stopped.mask, truth) << " spill " << spill(stopped.mask, truth) << " it " << stopped.iterations
+              << "\n";
     // CDSG: within about a voxel of the disc all round (Dice of a 1-px ring error at r=30 is ~0.97).
     EXPECT_GT(dice(cdsg.mask, truth), 0.95);
     EXPECT_LT(spill(cdsg.mask, truth), 0.05);
     EXPECT_TRUE(cdsg.converged);
     // GAC: leaks into the bright sector; at least 20 % of the disc's area outside it.
     EXPECT_GT(spill(gac.mask, truth), 0.2);
+    // The leak stop (the default): the GAC's growth fell as the front reached the disc's edge and
+    // rose again as the leak spread; the contour from before it spread is returned, flagged.
+    EXPECT_TRUE(stopped.leak_stopped);
+    EXPECT_FALSE(stopped.converged);
+    EXPECT_LT(spill(stopped.mask, truth), 0.05);
+    EXPECT_GT(dice(stopped.mask, truth), 0.95);
+    // The default CDSG run is untouched: it converges before any rise.
+    const auto cdsg_default = run(SnakeMethod::Cdsg, img, init);
+    EXPECT_TRUE(cdsg_default.converged);
+    EXPECT_FALSE(cdsg_default.leak_stopped);
 }
 
 // Fig 4.14 / 4.17: an Ω-shaped bulb joined to the object by a neck. A GVF snake starting inside

@@ -119,7 +119,8 @@ int run_snake(SnakeOptions& o, const tools::Progress& progress, tools::RunRecord
         inside += v;
     const double voxel_ml = image.spacing[0] * image.spacing[1] * image.spacing[2] / 1000.0;
     std::ostringstream msg;
-    msg << std::fixed << std::setprecision(3) << (r.converged ? "converged" : "did NOT converge") << " after "
+    msg << std::fixed << std::setprecision(3)
+        << (r.converged ? "converged" : r.leak_stopped ? "stopped at a leak (not converged)" : "did NOT converge") << " after "
         << r.iterations << " iterations (" << r.runs << (r.runs == 1 ? " run" : " runs")
         << (r.competition_used ? ", energy competition on" : "") << "); fields " << r.field_seconds
         << " s, evolution " << r.evolve_seconds << " s; " << std::setprecision(1) << static_cast<double>(inside) * voxel_ml << " mL";
@@ -131,6 +132,7 @@ int run_snake(SnakeOptions& o, const tools::Progress& progress, tools::RunRecord
         prov.timings.emplace_back("snake.evolution", r.evolve_seconds);
         prov.parameters.emplace_back("result.converged", r.converged ? "true" : "false");
         prov.parameters.emplace_back("result.iterations", std::to_string(r.iterations));
+        prov.parameters.emplace_back("result.leak_stopped", r.leak_stopped ? "true" : "false");
         prov.parameters.emplace_back("result.runs", std::to_string(r.runs));
         prov.parameters.emplace_back("result.competition_used", r.competition_used ? "true" : "false");
         io::Hdf5Writer h5(o.out);
@@ -212,6 +214,11 @@ Command add_snake(CLI::App& lseg)
     cmd->add_option("--max-iterations", o->params.level_set.max_iterations, "Bound on level-set iterations")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    cmd->add_option("--leak-checks", o->params.level_set.leak_checks,
+                    "Leak stop: rising growth at this many checks after the front slowed ends the run at its "
+                    "slowest state; 0 = off")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
     cmd->add_option("--mask", o->mask_out, "Also write the mask as an image (e.g. .mhd for 3D Slicer)");
     cmd->add_option("--png", o->png, "Also write a picture of the contour on the slice (PNG)");
     cmd->add_flag("--require-convergence", o->require_convergence,

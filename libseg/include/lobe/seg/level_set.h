@@ -41,6 +41,15 @@ struct LevelSetParams {
                                     //!< boundary voxels, stay below this for `convergence_checks`
                                     //!< checks in a row (a translating shape never converges)
     int convergence_checks = 2;
+    //! Leak stop (0 = off). The measure is the net growth per check: voxels that became inside
+    //! minus those that became outside, per boundary voxel. Once its lowest value is below
+    //! `leak_slowdown` times its largest (the front has slowed at the edges), a growth that rises
+    //! at this many checks in a row and ends above `leak_rise` times the lowest (and above
+    //! convergence_tolerance) is a part of the front that broke through a gap and spreads,
+    //! growing its own front: the run ends and returns φ as it was at the lowest growth.
+    int leak_checks = 0;
+    double leak_slowdown = 0.25;
+    double leak_rise = 1.5;
 };
 
 //! What `evolve_level_set` returns.
@@ -52,6 +61,8 @@ struct LevelSetResult {
     int reinitialisations = 0;
     double time_step = 0.0;    //!< Δt used
     double last_change = 0.0;  //!< the last convergence measure (see convergence_tolerance)
+    bool leak_stopped = false; //!< the leak stop ended the run (converged is false)
+    int leak_iteration = 0;    //!< ... and φ is the one of this iteration
 };
 
 //! Evolves φ0 under `terms`. Non-finite values in φ0 or in a term are rejected up front.

@@ -56,10 +56,13 @@ struct SnakeParams {
     double gac_pressure = 1.0;      //!< v0 of the geodesic active contour
     double gac_stopping_k = 0.005;  //!< k of the GAC stopping function (sharper than the CDSG default)
     //! The level set, with a convergence tolerance of 2 % of the contour's voxels changing side
-    //! per check: on a noisy weak edge a few voxels flicker for ever (docs/segmentation.md).
+    //! per check (on a noisy weak edge a few voxels flicker for ever) and the leak stop on: four
+    //! checks of rising growth after the front had slowed to a quarter of its peak end the run
+    //! at the slowest state (docs/segmentation.md, "Leak stop").
     LevelSetParams level_set = [] {
         LevelSetParams p;
         p.convergence_tolerance = 0.02;
+        p.leak_checks = 4;
         return p;
     }();
     CompetitionMode competition = CompetitionMode::Auto;
@@ -74,6 +77,8 @@ struct SnakeResult {
     core::ImageF phi;           //!< the final level set
     int iterations = 0;         //!< level-set iterations (of the last run when competition repeated)
     bool converged = false;
+    bool leak_stopped = false;  //!< the leak stop ended the run: the contour is the one before the
+                                //!< leak spread (converged is false; LevelSetParams::leak_checks)
     bool competition_used = false; //!< true if G = 0.3 was in force for the returned result
     int runs = 1;               //!< 1, or 2 when the Auto rule repeated the segmentation
     double field_seconds = 0.0; //!< edge map, distances and vector fields
