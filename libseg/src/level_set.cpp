@@ -5,8 +5,6 @@
 #include "lobe/seg/distance_transform.h"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -723,8 +721,8 @@ LevelSetResult evolve_level_set(const ImageF& phi0, const SpeedTerms& terms, con
     r.time_step = ev.dt();
     bool alive = ev.redistance(true);
     int streak = 0;
-    // Leak stop: the lowest convergence measure so far, the state then, and the checks since
-    // the measure rose well above it.
+    // Leak stop: the largest and lowest net growth so far, φ at the lowest, and how many checks
+    // in a row the growth has risen since.
     double peak = 0.0, lowest = std::numeric_limits<double>::infinity();
     std::vector<float> at_lowest;
     int lowest_iteration = 0, rising = 0;
@@ -755,7 +753,10 @@ LevelSetResult evolve_level_set(const ImageF& phi0, const SpeedTerms& terms, con
                     lowest_iteration = it;
                     at_lowest.assign(ev.current(), ev.current() + r.phi.data.size());
                     rising = 0;
-                } else if (lowest < params.leak_slowdown * peak && g > previous_growth) {
+                } else if (lowest >= -params.convergence_tolerance && lowest < params.leak_slowdown * peak &&
+                           g > previous_growth) {
+                    // (A front that shrank at its lowest, lowest < -tolerance, is left alone: its
+                    // lowest state is no contour from before a leak.)
                     // A leak spreads: it grows its own front, so its growth rises check after check.
                     if (++rising >= params.leak_checks && g > std::max(params.leak_rise * lowest, params.convergence_tolerance)) {
                         leaked = true;
