@@ -1,5 +1,6 @@
 #include "detail/chunk_filters.h"
 
+#include <omp.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -60,12 +61,22 @@ std::uint32_t fletcher32(const unsigned char* data, std::size_t bytes)
     return (sum2 << 16) | sum1;
 }
 
+namespace {
+
+// HDF5's shuffle filter leaves a chunk of one-byte elements, or of a single element, as it is.
+bool shuffles(std::size_t bytes, std::size_t element_size)
+{
+    return element_size > 1 && bytes >= 2 * element_size;
+}
+
+} // namespace
+
 bool filter_chunk(const unsigned char* chunk, std::size_t bytes, std::size_t element_size, int gzip_level,
                   bool checksum, std::vector<unsigned char>& scratch, std::vector<unsigned char>& out)
 {
     if (gzip_level > 0) {
         const unsigned char* src = chunk;
-        if (element_size > 1 && bytes >= 2 * element_size) {
+        if (shuffles(bytes, element_size)) {
             scratch.resize(bytes);
             shuffle_bytes(chunk, scratch.data(), bytes, element_size);
             src = scratch.data();
@@ -85,6 +96,69 @@ bool filter_chunk(const unsigned char* chunk, std::size_t bytes, std::size_t ele
             out.push_back(static_cast<unsigned char>(f >> (8 * b)));
     }
     return true;
+}
+
+bool unfilter_chunk(const unsigned char* stored, std::size_t stored_bytes, std::size_t chunk_bytes,
+                    std::size_t element_size, bool shuffle, bool deflate, bool checksum,
+                    std::vector<unsigned char>& scratch, std::vector<unsigned char>& out)
+{
+    std::size_t n = stored_bytes;
+    if (checksum) {
+        if (n < 4)
+            return false;
+        n -= 4;
+        const unsigned char* t = stored + n; // appended little-endian, as filter_chunk writes it
+        const std::uint32_t expected =
+            std::uint32_t(t[0]) | std::uint32_t(t[1]) << 8 | std::uint32_t(t[2]) << 16 | std::uint32_t(t[3]) << 24;
+        if (fletcher32(stored, n) != expected)
+            return false;
+    }
+    const bool unshuffle = shuffle && shuffles(chunk_bytes, element_size);
+    std::vector<unsigned char>& plain = unshuffle ? scratch : out;
+    plain.resize(chunk_bytes);
+    if (deflate) {
+        if (!inflate_exactly(stored, n, plain.data(), chunk_bytes))
+            return false;
+    } else {
+        if (n != chunk_bytes)
+            return false;
+        std::copy_n(stored, n, plain.data());
+    }
+    if (unshuffle) {
+        out.resize(chunk_bytes);
+        unshuffle_bytes(scratch.data(), out.data(), chunk_bytes, element_size);
+    }
+    return true;
+}
+
+ChunkGrid::ChunkGrid(const unsigned long long* dims_in, const unsigned long long* chunk_in, int rank_in) : rank(rank_in)
+{
+    for (int a = 0; a < rank; ++a) {
+        dims[static_cast<std::size_t>(3 - rank + a)] = static_cast<std::size_t>(dims_in[a]);
+        chunk[static_cast<std::size_t>(3 - rank + a)] = static_cast<std::size_t>(chunk_in[a]);
+    }
+    for (std::size_t a = 0; a < 3; ++a)
+        grid[a] = (dims[a] + chunk[a] - 1) / chunk[a];
+}
+
+std::array<std::size_t, 3> ChunkGrid::origin(std::size_t c) const
+{
+    return {c / (grid[1] * grid[2]) * chunk[0], c / grid[2] % grid[1] * chunk[1], c % grid[2] * chunk[2]};
+}
+
+std::size_t ChunkGrid::index(const std::array<std::size_t, 3>& o) const
+{
+    return (o[0] / chunk[0] * grid[1] + o[1] / chunk[1]) * grid[2] + o[2] / chunk[2];
+}
+
+bool ChunkGrid::partial(const std::array<std::size_t, 3>& o) const
+{
+    return o[0] + chunk[0] > dims[0] || o[1] + chunk[1] > dims[1] || o[2] + chunk[2] > dims[2];
+}
+
+std::size_t chunk_batch()
+{
+    return 4 * static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
 }
 
 } // namespace lobe::io::detail

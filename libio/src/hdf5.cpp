@@ -296,74 +296,46 @@ void write_scalar_attr(hid_t obj, const std::string& name, T value, const std::s
     write_array_attr(obj, name, &value, 1, what, true);
 }
 
-std::size_t chunk_count(const std::vector<hsize_t>& dims, const std::vector<hsize_t>& chunk)
-{
-    std::size_t n = 1;
-    for (std::size_t a = 0; a < dims.size(); ++a)
-        n *= static_cast<std::size_t>((dims[a] + chunk[a] - 1) / chunk[a]);
-    return n;
-}
+static_assert(std::is_same_v<hsize_t, unsigned long long>, "detail::ChunkGrid takes HDF5's hsize_t");
 
 // Filters the chunks of a row-major array of rank <= 3 on every core and stores them with
 // H5Dwrite_chunk: HDF5 1.10 runs a dataset's filters on one thread, which made writing a
 // 512 x 512 x 200 CT take seconds. Only the master thread calls HDF5. The chunks are the bytes
 // HDF5's own pipeline would store, edge chunks padded with the fill value 0 as HDF5 pads them.
 template <class T>
-void write_filtered_chunks(hid_t ds, const std::vector<hsize_t>& dims_in, const std::vector<hsize_t>& chunk_in,
-                           const T* data, const Hdf5WriteParams& params, const std::string& what)
+void write_filtered_chunks(hid_t ds, const detail::ChunkGrid& cg, const T* data, const Hdf5WriteParams& params,
+                           const std::string& what)
 {
-    const int rank = static_cast<int>(dims_in.size());
-    if (rank < 1 || rank > 3)
-        throw IoError(what + ": rank " + std::to_string(rank) + " has no chunked writer");
-    // Padded to rank 3 with leading ones, so one loop nest serves vectors, tables and volumes.
-    std::array<std::size_t, 3> dims{1, 1, 1}, chunk{1, 1, 1}, grid{};
-    for (int a = 0; a < rank; ++a) {
-        dims[3 - rank + a] = static_cast<std::size_t>(dims_in[a]);
-        chunk[3 - rank + a] = static_cast<std::size_t>(chunk_in[a]);
-    }
-    for (int a = 0; a < 3; ++a)
-        grid[a] = (dims[a] + chunk[a] - 1) / chunk[a];
-    const std::size_t chunks = grid[0] * grid[1] * grid[2];
-    const std::size_t chunk_values = chunk[0] * chunk[1] * chunk[2];
-    const std::size_t chunk_bytes = chunk_values * sizeof(T);
-
-    // A batch of a few chunks per thread bounds the memory held by filtered chunks awaiting writing.
-    const std::size_t threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
-    const std::size_t batch = 4 * threads;
+    const std::size_t chunks = cg.count(), batch = detail::chunk_batch();
     std::vector<std::vector<unsigned char>> filtered(batch);
     for (std::size_t first = 0; first < chunks; first += batch) {
         const std::size_t last = std::min(chunks, first + batch);
         bool failed = false;
 #pragma omp parallel
         {
-            std::vector<T> raw(chunk_values);
+            std::vector<T> raw(cg.chunk_values());
             std::vector<unsigned char> scratch;
 #pragma omp for schedule(dynamic, 1) reduction(|| : failed)
             for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(first); i < static_cast<std::ptrdiff_t>(last); ++i) {
                 const std::size_t c = static_cast<std::size_t>(i);
-                const std::size_t z0 = (c / (grid[1] * grid[2])) * chunk[0];
-                const std::size_t y0 = (c / grid[2] % grid[1]) * chunk[1];
-                const std::size_t x0 = (c % grid[2]) * chunk[2];
-                const std::size_t nz = std::min(chunk[0], dims[0] - z0), ny = std::min(chunk[1], dims[1] - y0),
-                                  nx = std::min(chunk[2], dims[2] - x0);
-                if (nz < chunk[0] || ny < chunk[1] || nx < chunk[2])
+                const auto origin = cg.origin(c);
+                if (cg.partial(origin))
                     std::fill(raw.begin(), raw.end(), T{});
-                for (std::size_t z = 0; z < nz; ++z)
-                    for (std::size_t y = 0; y < ny; ++y)
-                        std::copy_n(data + ((z0 + z) * dims[1] + y0 + y) * dims[2] + x0, nx,
-                                    raw.data() + (z * chunk[1] + y) * chunk[2]);
-                if (!detail::filter_chunk(reinterpret_cast<const unsigned char*>(raw.data()), chunk_bytes, sizeof(T),
-                                          params.gzip_level, params.checksum, scratch, filtered[c - first]))
+                cg.rows(origin, [&](std::size_t at, std::size_t in_chunk, std::size_t n) {
+                    std::copy_n(data + at, n, raw.data() + in_chunk);
+                });
+                if (!detail::filter_chunk(reinterpret_cast<const unsigned char*>(raw.data()), raw.size() * sizeof(T),
+                                          sizeof(T), params.gzip_level, params.checksum, scratch, filtered[c - first]))
                     failed = true;
             }
         }
         if (failed)
             throw IoError(what + ": zlib could not compress a chunk");
         for (std::size_t c = first; c < last; ++c) {
-            std::array<hsize_t, 3> offset{hsize_t(c / (grid[1] * grid[2]) * chunk[0]),
-                                          hsize_t(c / grid[2] % grid[1] * chunk[1]), hsize_t(c % grid[2] * chunk[2])};
+            const auto origin = cg.origin(c);
+            const std::array<hsize_t, 3> offset{origin[0], origin[1], origin[2]};
             const std::vector<unsigned char>& bytes = filtered[c - first];
-            ok(H5Dwrite_chunk(ds, H5P_DEFAULT, 0, offset.data() + (3 - rank), bytes.size(), bytes.data()),
+            ok(H5Dwrite_chunk(ds, H5P_DEFAULT, 0, offset.data() + (3 - cg.rank), bytes.size(), bytes.data()),
                what + ": cannot write chunk " + std::to_string(c));
         }
     }
@@ -398,12 +370,14 @@ Dataset write_dataset(hid_t loc, const std::string& name, const std::vector<hsiz
     // file_type<T> is little-endian, as the native types here are, so the chunks' bytes are the
     // values' bytes; on a big-endian machine HDF5 converts and we let it.
     const bool filtered = params.gzip_level > 0 || params.checksum;
-    const bool direct = filtered && H5Tequal(file_type<T>(), native_type<T>()) > 0 &&
-                        chunk_count(dims, chunk) >= 2;
-    if (direct)
-        write_filtered_chunks(ds.get(), dims, chunk, data, params, what);
-    else
-        ok(H5Dwrite(ds.get(), native_type<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, data), what + ": cannot write data");
+    if (filtered && rank <= 3 && H5Tequal(file_type<T>(), native_type<T>()) > 0) {
+        const detail::ChunkGrid cg(dims.data(), chunk.data(), rank);
+        if (cg.count() >= 2) {
+            write_filtered_chunks(ds.get(), cg, data, params, what);
+            return ds;
+        }
+    }
+    ok(H5Dwrite(ds.get(), native_type<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, data), what + ": cannot write data");
     return ds;
 }
 
@@ -823,20 +797,12 @@ bool read_chunks_parallel(const DatasetView& v, T* out)
     if (!filters)
         return false;
     std::array<hsize_t, 3> chunk_in{};
-    if (H5Pget_chunk(dcpl.get(), rank, chunk_in.data()) != rank)
+    if (H5Pget_chunk(dcpl.get(), rank, chunk_in.data()) != rank ||
+        std::any_of(chunk_in.begin(), chunk_in.begin() + rank, [](hsize_t c) { return c == 0; }))
         return false;
-    std::array<std::size_t, 3> dims{1, 1, 1}, chunk{1, 1, 1}, grid{};
-    for (int a = 0; a < rank; ++a) {
-        dims[3 - rank + a] = static_cast<std::size_t>(v.dims[a]);
-        chunk[3 - rank + a] = static_cast<std::size_t>(chunk_in[a]);
-        if (chunk[3 - rank + a] == 0)
-            return false;
-    }
-    for (int a = 0; a < 3; ++a)
-        grid[a] = (dims[a] + chunk[a] - 1) / chunk[a];
-    const std::size_t chunks = grid[0] * grid[1] * grid[2];
-    const std::size_t chunk_values = chunk[0] * chunk[1] * chunk[2];
-    const std::size_t chunk_bytes = chunk_values * sizeof(T);
+    const detail::ChunkGrid cg(v.dims.data(), chunk_in.data(), rank);
+    const std::size_t chunks = cg.count();
+    const std::size_t chunk_bytes = cg.chunk_values() * sizeof(T);
     Space space(H5Dget_space(v.ds.get()));
     hsize_t stored_chunks = 0;
     if (chunks < 2 || chunk_bytes > 64 * kChunkBytes || space.get() < 0 ||
@@ -844,19 +810,18 @@ bool read_chunks_parallel(const DatasetView& v, T* out)
         return false;
     const bool checksum = filters->back() == H5Z_FILTER_FLETCHER32;
     const bool deflate = std::find(filters->begin(), filters->end(), H5Z_FILTER_DEFLATE) != filters->end();
-    const bool shuffle = filters->front() == H5Z_FILTER_SHUFFLE && sizeof(T) > 1 && chunk_values > 1;
+    const bool shuffle = filters->front() == H5Z_FILTER_SHUFFLE;
     // The most a chunk can take on disk: deflate's worst case plus the checksum.
     const std::size_t max_stored = chunk_bytes + chunk_bytes / 1000 + 64;
 
-    const std::size_t threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
-    const std::size_t batch = 4 * threads;
+    const std::size_t batch = detail::chunk_batch();
     std::vector<std::vector<unsigned char>> stored(batch);
-    std::vector<std::array<hsize_t, 3>> offsets(batch);
+    std::vector<std::array<std::size_t, 3>> origins(batch);
     std::vector<char> seen(chunks, 0);
     for (std::size_t first = 0; first < chunks; first += batch) {
         const std::size_t last = std::min(chunks, first + batch);
         for (std::size_t c = first; c < last; ++c) {
-            std::array<hsize_t, 3>& off = offsets[c - first];
+            std::array<hsize_t, 3> off{};
             unsigned mask = 0;
             haddr_t addr = 0;
             hsize_t size = 0;
@@ -866,59 +831,34 @@ bool read_chunks_parallel(const DatasetView& v, T* out)
             stored[c - first].resize(static_cast<std::size_t>(size));
             if (H5Dread_chunk(v.ds.get(), H5P_DEFAULT, off.data(), &mask, stored[c - first].data()) < 0 || mask != 0)
                 return false;
-            std::size_t index = 0; // the chunk's place in the grid: each must come exactly once
+            std::array<std::size_t, 3>& origin = origins[c - first];
+            origin = {0, 0, 0};
             for (int a = 0; a < rank; ++a) {
                 const auto u = static_cast<std::size_t>(a);
                 if (off[u] % chunk_in[u] != 0 || off[u] >= v.dims[u])
                     return false;
-                index = index * grid[static_cast<std::size_t>(3 - rank + a)] + static_cast<std::size_t>(off[u] / chunk_in[u]);
+                origin[static_cast<std::size_t>(3 - rank + a)] = static_cast<std::size_t>(off[u]);
             }
-            if (seen[index])
+            // Each chunk of the grid must come exactly once.
+            if (seen[cg.index(origin)])
                 return false;
-            seen[index] = 1;
+            seen[cg.index(origin)] = 1;
         }
         bool failed = false;
 #pragma omp parallel
         {
-            std::vector<unsigned char> raw(chunk_bytes), plain(chunk_bytes);
+            std::vector<unsigned char> scratch, plain;
 #pragma omp for schedule(dynamic, 1) reduction(|| : failed)
             for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(first); i < static_cast<std::ptrdiff_t>(last); ++i) {
-                const std::vector<unsigned char>& in = stored[static_cast<std::size_t>(i) - first];
-                std::size_t n = in.size();
-                if (checksum) {
-                    if (n < 4 || detail::fletcher32(in.data(), n - 4) !=
-                                     (std::uint32_t(in[n - 4]) | std::uint32_t(in[n - 3]) << 8 |
-                                      std::uint32_t(in[n - 2]) << 16 | std::uint32_t(in[n - 1]) << 24)) {
-                        failed = true;
-                        continue;
-                    }
-                    n -= 4;
-                }
-                const unsigned char* bytes = in.data();
-                if (deflate) {
-                    if (!detail::inflate_exactly(in.data(), n, raw.data(), chunk_bytes)) {
-                        failed = true;
-                        continue;
-                    }
-                    bytes = raw.data();
-                } else if (n != chunk_bytes) {
+                const std::size_t b = static_cast<std::size_t>(i) - first;
+                if (!detail::unfilter_chunk(stored[b].data(), stored[b].size(), chunk_bytes, sizeof(T), shuffle, deflate,
+                                            checksum, scratch, plain)) {
                     failed = true;
                     continue;
                 }
-                if (shuffle) {
-                    detail::unshuffle_bytes(bytes, plain.data(), chunk_bytes, sizeof(T));
-                    bytes = plain.data();
-                }
-                const auto& off = offsets[static_cast<std::size_t>(i) - first];
-                std::array<std::size_t, 3> o{0, 0, 0};
-                for (int a = 0; a < rank; ++a)
-                    o[static_cast<std::size_t>(3 - rank + a)] = static_cast<std::size_t>(off[static_cast<std::size_t>(a)]);
-                const std::size_t nz = std::min(chunk[0], dims[0] - o[0]), ny = std::min(chunk[1], dims[1] - o[1]),
-                                  nx = std::min(chunk[2], dims[2] - o[2]);
-                for (std::size_t z = 0; z < nz; ++z)
-                    for (std::size_t y = 0; y < ny; ++y)
-                        std::memcpy(out + ((o[0] + z) * dims[1] + o[1] + y) * dims[2] + o[2],
-                                    bytes + ((z * chunk[1] + y) * chunk[2]) * sizeof(T), nx * sizeof(T));
+                cg.rows(origins[b], [&](std::size_t at, std::size_t in_chunk, std::size_t n) {
+                    std::memcpy(out + at, plain.data() + in_chunk * sizeof(T), n * sizeof(T));
+                });
             }
         }
         if (failed)

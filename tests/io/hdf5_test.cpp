@@ -180,6 +180,16 @@ struct H5Id {
     operator hid_t() const { return id; }
 };
 
+// Flips one bit of the byte at `at`: a corruption only a checksum can see in raw pixels.
+void flip_bit(const fs::path& p, std::streamoff at)
+{
+    std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(at);
+    const int c = f.get();
+    f.seekp(at);
+    f.put(static_cast<char>(c ^ 0x40));
+}
+
 H5Id open_rw(const fs::path& p) { return H5Id(H5Fopen(p.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose); }
 
 // Writes a small valid container with one of everything.
@@ -672,14 +682,7 @@ TEST(Hdf5Container, ChunksReadInParallelAsHdf5ReadsThem)
         unsigned mask = 0;
         ASSERT_GE(H5Dget_chunk_info_by_coord(ds, offset, &mask, &addr, &size), 0);
     }
-    {
-        const auto at = static_cast<std::streamoff>(addr + size / 2);
-        std::fstream f(dir / "ct.h5", std::ios::in | std::ios::out | std::ios::binary);
-        f.seekg(at);
-        const int c = f.get();
-        f.seekp(at);
-        f.put(static_cast<char>(c ^ 0x40));
-    }
+    flip_bit(dir / "ct.h5", static_cast<std::streamoff>(addr + size / 2));
     EXPECT_LOBE_ERROR(IoError, read_hdf5_image(dir / "ct.h5", "ct"), (dir / "ct.h5").string() + ": /images/ct: cannot read data");
 }
 
@@ -703,14 +706,7 @@ TEST(Hdf5Container, CorruptedChunkIsAnIoErrorNotWrongData)
         ASSERT_GE(H5Dget_chunk_info_by_coord(ds, offset, &mask, &addr, &size), 0);
         ASSERT_EQ(size, 20u * 20 * 20 * 2 + 4); // raw pixels plus the 4-byte checksum
     }
-    {
-        const auto at = static_cast<std::streamoff>(addr + size / 2);
-        std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
-        f.seekg(at);
-        const int c = f.get();
-        f.seekp(at);
-        f.put(static_cast<char>(c ^ 0x40));
-    }
+    flip_bit(p, static_cast<std::streamoff>(addr + size / 2));
     EXPECT_LOBE_ERROR(IoError, read_hdf5_image(p), p.string() + ": /images/ct: cannot read data");
 }
 
