@@ -277,14 +277,16 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     const double px = pixel_area_mm2(g);
     core::LabelImage3D init = on_grid(start, g);
     core::LabelImage3D templ;
-    core::LabelImage3D region; // the liver-like layer on the slice, where the pressure acts
+    core::LabelImage3D region; // with layer_holds_pressure: the liver-like layer, where the pressure acts
     if (previous) {
         templ = on_grid(*previous, g);
         const Window ww = window_around(templ, p.window_margin_mm);
         const core::ImageF img_w = crop(img, ww);
         const core::LabelImage3D layer = liver_layer(c, gaussian_smooth(img_w, 1.0));
-        region = core::LabelImage3D(g, 0);
-        paste(layer, ww, region);
+        if (p.layer_holds_pressure) {
+            region = core::LabelImage3D(g, 0);
+            paste(layer, ww, region);
+        }
         const core::LabelImage3D lines = cut_lines(img_w, p.snake.edge);
         const core::LabelImage3D shrunk = crop(shrink(templ, p.erosion_mm), ww);
         // The rim: the shrunk previous contour's outermost two pixels.
@@ -324,13 +326,14 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     if (previous)
         sp.level_set.max_iterations = p.propagation_max_iterations;
     const core::LabelImage3D templ_w = previous ? crop(templ, w) : core::LabelImage3D();
-    const core::LabelImage3D region_w = previous && p.layer_holds_pressure ? crop(region, w) : core::LabelImage3D();
+    const core::LabelImage3D region_w = region.data.empty() ? core::LabelImage3D() : crop(region, w);
     const SnakeResult r = segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr,
                                         region_w.data.empty() ? nullptr : &region_w);
     out.mask = core::LabelImage3D(g, 0);
     paste(r.mask, w, out.mask);
     out.report.iterations = r.iterations;
     out.report.converged = r.converged;
+    out.report.leak_stopped = r.leak_stopped;
     out.report.competition_used = r.competition_used;
 
     if (previous) {
@@ -373,7 +376,7 @@ void report(const Context& c, const LiverSliceReport& r)
     std::ostringstream s;
     s.precision(3);
     s << "slice " << r.slice << ": " << r.area_mm2 / 100.0 << " cm2, " << r.iterations << " iterations"
-      << (r.converged ? "" : " (bound)") << (r.competition_used ? ", competition" : "")
+      << (r.converged ? "" : r.leak_stopped ? " (leak stop)" : " (bound)") << (r.competition_used ? ", competition" : "")
       << (r.rejected ? (r.recovered ? ", clipped by the shape memory (" : ", implausible even clipped (") + r.shape_reason + ")" : "") << ", "
       << r.seconds << " s";
     c.progress(s.str());

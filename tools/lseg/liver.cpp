@@ -100,7 +100,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     for (const auto& s : r.slices) {
         rejected += s.rejected;
         recovered += s.recovered;
-        bounded += !s.converged;
+        bounded += !s.converged && !s.leak_stopped;
     }
     progress.message("liver: " + fixed(r.volume_ml, 1) + " mL on slices " + std::to_string(r.first_slice) + ".." +
                      std::to_string(r.last_slice) + " (" + std::to_string(r.slices.size()) + " slices segmented, " +

@@ -29,6 +29,7 @@ struct LiverSliceReport {
     double area_mm2 = 0;        //!< area of the accepted contour
     int iterations = 0;         //!< level-set iterations of the snake
     bool converged = false;
+    bool leak_stopped = false;  //!< the snake's leak stop ended it (SnakeResult::leak_stopped)
     bool competition_used = false;
     bool rejected = false;      //!< the shape memory rejected the snake's contour
     bool recovered = false;     //!< ... and its clip to the memory's envelope was accepted
