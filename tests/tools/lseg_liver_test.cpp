@@ -98,4 +98,9 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "d.h5") + " --shape " + q(dir / "flat.mhd"), dir);
     EXPECT_EQ(r.exit_code, 2) << r.err; // not a shape memory file
     EXPECT_FALSE(fs::exists(dir / "d.h5"));
+
+    r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "e.h5") + " --max-iterations 0", dir);
+    EXPECT_EQ(r.exit_code, 1) << r.err; // a bad command line: no iteration at all
+    EXPECT_NE(r.err.find("--max-iterations"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "e.h5"));
 }

@@ -311,6 +311,9 @@ TEST(LsegSnake, BadInputAndUsage)
     EXPECT_NE(r.err.find("outside"), std::string::npos) << r.err;
     r = lseg("snake " + q(ct) + " --slice 1 --seed 32,32,1 --method nope -o " + q(dir / "a.h5"), dir);
     EXPECT_EQ(r.exit_code, 1);
+    r = lseg("snake " + q(ct) + " --slice 1 --seed 32,32,1 --leak-checks -1 -o " + q(dir / "a.h5"), dir);
+    EXPECT_EQ(r.exit_code, 1) << "a negative leak-stop count";
+    EXPECT_NE(r.err.find("--leak-checks"), std::string::npos) << r.err;
     r = lseg("snake " + q(dir / "missing.mhd") + " --slice 1 --seed 32,32,1 -o " + q(dir / "a.h5"), dir);
     EXPECT_EQ(r.exit_code, 2);
     EXPECT_NE(r.err.find("missing.mhd"), std::string::npos) << r.err;
