@@ -24,6 +24,7 @@ using Index = std::int64_t;
 // Per-voxel flag bits of the working grid.
 constexpr std::uint8_t kInBand = 1;     // the voxel is in the current band
 constexpr std::uint8_t kSnapInside = 2; // inside at the voxel's last convergence accounting
+constexpr std::uint8_t kRepairQueued = 4; // a candidate of the redistancing's repair
 
 // Neighbour bits of a band voxel: which face neighbours exist (grid border, inactive axis) and
 // whether one of them is outside the band (the front near such a voxel triggers re-initialisation).
@@ -219,6 +220,10 @@ class Evolver {
     bool interface_site(Index v, int i, int j, int k);
     double patch_distance2(const std::array<double, 3>& x, const Patch& s, double bound) const;
     void nearest_patch(Visit& q) const;
+    template <class Push> void expand(Visit from, Push&& push);
+    void place(std::size_t begin, std::size_t end);
+    bool violates(const Visit& q) const;
+    void repair(std::size_t first);
     template <bool k3D> void step_band(Index& inside, bool& near);
     std::uint8_t neighbour_bits(int i, int j, int k) const;
     bool any_sign(bool inside) const;
@@ -257,6 +262,7 @@ class Evolver {
     std::vector<std::int32_t> slot_; // during redistancing: voxel -> its patch; -1 not reached, -2 queued
     std::vector<Patch> patches_;
     std::vector<Visit> visits_; // in breadth-first order, the interface voxels first
+    std::vector<Visit> repair_; // candidates of the repair
     std::vector<Index> ring_;   // offsets of the 8 (2-D) or 26 (3-D) neighbours
     std::vector<BandVoxel> band_;
     std::vector<BandVoxel> spare_band_; // the next band is built here, then swapped in
@@ -526,6 +532,7 @@ bool Evolver::interface_site(Index v, int i, int j, int k)
     patches_.push_back(patch);
     visits_.push_back({v, i, j, k, static_cast<float>(d), in, id});
     slot_[static_cast<std::size_t>(v)] = id;
+    nxt_[v] = static_cast<float>(d); // scratch for the repair (see place)
     return true;
 }
 
@@ -584,6 +591,153 @@ void Evolver::nearest_patch(Visit& q) const
     q.patch = best_patch;
 }
 
+// Hands each face neighbour of visit t that is neither placed nor queued to push(visit).
+template <class Push> void Evolver::expand(const Visit from, Push&& push) // a copy: push may grow visits_
+{
+    const std::array<int, 3> ijk{from.i, from.j, from.k};
+    for (std::size_t a = 0; a < 3; ++a) {
+        if (!g_.active[a])
+            continue;
+        for (int sd = -1; sd <= 1; sd += 2) {
+            const int na = ijk[a] + sd;
+            if (na < 0 || na >= g_.n[a])
+                continue;
+            const Index w = from.idx + sd * g_.stride[a];
+            auto& sl = slot_[static_cast<std::size_t>(w)];
+            if (sl != -1)
+                continue;
+            sl = -2;
+            std::array<int, 3> q = ijk;
+            q[a] = na;
+            push(Visit{w, q[0], q[1], q[2], 0.f, cur_[w] < 0.f, -1});
+        }
+    }
+}
+
+// Gives the queued visits [begin, end) their nearest patch and publishes it; they read only the
+// patches published before, so they are independent. The distance of every placed voxel is kept
+// in nxt_, free scratch during the redistancing (each visited voxel is rewritten at its end).
+void Evolver::place(std::size_t begin, std::size_t end)
+{
+    const auto lo = static_cast<Index>(begin), hi = static_cast<Index>(end);
+#pragma omp parallel for schedule(static) if (hi - lo >= kParallelLevel)
+    for (Index t = lo; t < hi; ++t)
+        nearest_patch(visits_[static_cast<std::size_t>(t)]);
+    for (std::size_t t = begin; t < end; ++t) {
+        const auto v = static_cast<std::size_t>(visits_[t].idx);
+        slot_[v] = visits_[t].patch;
+        nxt_[v] = visits_[t].d;
+    }
+}
+
+// Whether q's distance exceeds a placed face neighbour's by more than their spacing: impossible
+// for the true distance, and for the distance to the neighbour's patch, which is 1-Lipschitz.
+bool Evolver::violates(const Visit& q) const
+{
+    const std::array<int, 3> ijk{q.i, q.j, q.k};
+    const double d = nxt_[q.idx], tol = 1e-3 * g_.hmin;
+    for (std::size_t a = 0; a < 3; ++a) {
+        if (!g_.active[a])
+            continue;
+        const double limit = d - g_.h[a] - tol;
+        for (int sd = -1; sd <= 1; sd += 2) {
+            const int na = ijk[a] + sd;
+            if (na < 0 || na >= g_.n[a])
+                continue;
+            const auto w = static_cast<std::size_t>(q.idx + sd * g_.stride[a]);
+            if (slot_[w] >= 0 && double(nxt_[w]) < limit)
+                return true;
+        }
+    }
+    return false;
+}
+
+// The levels count face steps, not millimetres, and the voxels of one level do not see each
+// other's patches. So a voxel may be reached first from a far part of the front (on an
+// anisotropic grid, by a few long steps along z while the near part arrives a level later by
+// short ones in plane) and keep the far patch; beyond the band width it then also stops the
+// search, leaving a hole in the band beside the front, and the edge test fires at the next step
+// (on a 0.7 x 0.7 x 2.5 mm volume φ was re-initialised at 294 of 340 steps). The repair: a voxel
+// that violates the triangle inequality with a face neighbour takes the nearest of its
+// neighbours' patches again (all placed now), then its neighbours are checked in turn; a voxel
+// that so enters the band expands. Every change lowers a distance, so the rounds end; the bound
+// only caps a pathological front. The candidates are voxel records, their distance and patch
+// living in nxt_ and slot_.
+void Evolver::repair(std::size_t first)
+{
+    constexpr int kMaxRounds = 32;
+    std::vector<Visit>& cand = repair_;
+    cand.clear();
+    {
+        const std::size_t count = visits_.size();
+        std::vector<std::uint8_t> bad(count, 0);
+        const auto lo = static_cast<Index>(first), hi = static_cast<Index>(count);
+#pragma omp parallel for schedule(static) if (hi - lo >= kParallelLevel)
+        for (Index t = lo; t < hi; ++t)
+            bad[static_cast<std::size_t>(t)] = violates(visits_[static_cast<std::size_t>(t)]);
+        for (std::size_t t = first; t < count; ++t)
+            if (bad[t])
+                cand.push_back(visits_[t]);
+    }
+    std::vector<Visit> better;
+    for (int round = 0; round < kMaxRounds && !cand.empty(); ++round) {
+        // Jacobi: every candidate reads the patches as they were before the round.
+        better.resize(cand.size());
+        const auto n = static_cast<Index>(cand.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelLevel)
+        for (Index c = 0; c < n; ++c) {
+            Visit q = cand[static_cast<std::size_t>(c)];
+            nearest_patch(q);
+            better[static_cast<std::size_t>(c)] = q;
+        }
+        const std::size_t placed = visits_.size();
+        cand.clear();
+        for (const Visit& q : better) {
+            const auto v = static_cast<std::size_t>(q.idx);
+            if (!(q.d < nxt_[v]))
+                continue;
+            const bool enters = double(nxt_[v]) > width_ && double(q.d) <= width_;
+            slot_[v] = q.patch;
+            nxt_[v] = q.d;
+            if (enters)
+                expand(q, [this](const Visit& w) { visits_.push_back(w); });
+            cand.push_back(q); // the changed voxels; their neighbours are the next candidates
+        }
+        place(placed, visits_.size());
+        std::vector<Visit> next;
+        for (const Visit& q : cand) {
+            const std::array<int, 3> ijk{q.i, q.j, q.k};
+            for (std::size_t a = 0; a < 3; ++a) {
+                if (!g_.active[a])
+                    continue;
+                for (int sd = -1; sd <= 1; sd += 2) {
+                    const int na = ijk[a] + sd;
+                    if (na < 0 || na >= g_.n[a])
+                        continue;
+                    const Index w = q.idx + sd * g_.stride[a];
+                    const auto u = static_cast<std::size_t>(w);
+                    const std::int32_t pt = slot_[u];
+                    // Placed, not an interface voxel (whose own patch defines the front), not
+                    // already a candidate.
+                    if (pt < 0 || (static_cast<std::size_t>(pt) < first && visits_[static_cast<std::size_t>(pt)].idx == w) ||
+                        (flags_[u] & kRepairQueued))
+                        continue;
+                    std::array<int, 3> r = ijk;
+                    r[a] = na;
+                    const Visit cw{w, r[0], r[1], r[2], nxt_[u], cur_[w] < 0.f, pt};
+                    if (violates(cw)) {
+                        flags_[u] |= kRepairQueued;
+                        next.push_back(cw);
+                    }
+                }
+            }
+        }
+        for (const Visit& q : next)
+            flags_[static_cast<std::size_t>(q.idx)] &= static_cast<std::uint8_t>(~kRepairQueued);
+        cand.swap(next);
+    }
+}
+
 // Sub-voxel redistancing restricted to the band: interface voxels get the local distance above
 // and define the front patches; the patches then spread outwards breadth-first, each voxel taking
 // the nearest patch among its already reached neighbours', stopping beyond the band width. Cost
@@ -603,41 +757,17 @@ bool Evolver::redistance(bool initial)
     }
     const bool front = !visits_.empty();
 
+    const std::size_t interface_visits = visits_.size();
     std::size_t begin = 0, end = visits_.size();
     while (begin < end) {
-        for (std::size_t t = begin; t < end; ++t) {
-            const Visit from = visits_[t];
-            if (double(from.d) > width_)
-                continue;
-            const std::array<int, 3> ijk{from.i, from.j, from.k};
-            for (std::size_t a = 0; a < 3; ++a) {
-                if (!g_.active[a])
-                    continue;
-                for (int sd = -1; sd <= 1; sd += 2) {
-                    const int na = ijk[a] + sd;
-                    if (na < 0 || na >= g_.n[a])
-                        continue;
-                    const Index w = from.idx + sd * g_.stride[a];
-                    auto& sl = slot_[static_cast<std::size_t>(w)];
-                    if (sl != -1)
-                        continue;
-                    sl = -2;
-                    std::array<int, 3> q = ijk;
-                    q[a] = na;
-                    visits_.push_back({w, q[0], q[1], q[2], 0.f, cur_[w] < 0.f, -1});
-                }
-            }
-        }
+        for (std::size_t t = begin; t < end; ++t)
+            if (double(visits_[t].d) <= width_)
+                expand(visits_[t], [this](const Visit& w) { visits_.push_back(w); });
         begin = end;
         end = visits_.size();
-        // A level sees only the patches of the levels before it, so its voxels are independent.
-        const auto lo = static_cast<Index>(begin), hi = static_cast<Index>(end);
-#pragma omp parallel for schedule(static) if (hi - lo >= kParallelLevel)
-        for (Index t = lo; t < hi; ++t)
-            nearest_patch(visits_[static_cast<std::size_t>(t)]);
-        for (std::size_t t = begin; t < end; ++t)
-            slot_[static_cast<std::size_t>(visits_[t].idx)] = visits_[t].patch;
+        place(begin, end);
     }
+    repair(interface_visits);
 
     const auto W = static_cast<float>(width_);
     // Inside voxels stay strictly negative so that the inside set is exactly preserved.
@@ -659,11 +789,12 @@ bool Evolver::redistance(bool initial)
     for (const Visit& q : visits_) {
         const auto v = static_cast<std::size_t>(q.idx);
         slot_[v] = -1;
-        if (double(q.d) > width_) {
+        const float d = b[v]; // the distance, repaired (see place)
+        if (double(d) > width_) {
             a[v] = b[v] = q.inside ? -W : W;
             continue;
         }
-        a[v] = b[v] = q.inside ? -std::max(q.d, tiny) : q.d;
+        a[v] = b[v] = q.inside ? -std::max(d, tiny) : d;
         flags_[v] |= kInBand;
         BandVoxel bv{q.idx, q.i, q.j, q.k, neighbour_bits(q.i, q.j, q.k), 0.f, 0.f, {0.f, 0.f, 0.f}};
         bv.curv = static_cast<float>(eps_ * (stop_ ? double(stop_[v]) : 1.0));
@@ -684,6 +815,9 @@ bool Evolver::redistance(bool initial)
             }
         }
     }
+    // In memory order, not breadth-first order: a step then reads φ's neighbourhoods nearly
+    // sequentially (measured 2x faster per step on a 512 x 512 x 80 volume).
+    std::sort(fresh.begin(), fresh.end(), [](const BandVoxel& x, const BandVoxel& y) { return x.idx < y.idx; });
     band_.swap(fresh);
     const Index sy = g_.stride[1], sz = g_.stride[2];
     auto out = [this](Index w) { return !(flags_[static_cast<std::size_t>(w)] & kInBand); };
@@ -758,7 +892,11 @@ LevelSetResult evolve_level_set(const ImageF& phi0, const SpeedTerms& terms, con
                     // (A front that shrank at its lowest, lowest < -tolerance, is left alone: its
                     // lowest state is no contour from before a leak.)
                     // A leak spreads: it grows its own front, so its growth rises check after check.
-                    if (++rising >= params.leak_checks && g > std::max(params.leak_rise * lowest, params.convergence_tolerance)) {
+                    // The rise is real if it exceeds either a fraction of the lowest growth or the
+                    // flicker level (the convergence tolerance); a slow steady leak from a front
+                    // that never quite stopped has a high lowest, and the ratio alone missed it.
+                    const double rise = std::min((params.leak_rise - 1.0) * lowest, params.convergence_tolerance);
+                    if (++rising >= params.leak_checks && g > params.convergence_tolerance && g - lowest > rise) {
                         leaked = true;
                         break;
                     }

@@ -388,6 +388,7 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
     out.mask = std::move(run.ls.mask);
     out.phi = std::move(run.ls.phi);
     out.iterations = run.ls.iterations;
+    out.reinitialisations = run.ls.reinitialisations;
     out.converged = run.ls.converged;
     out.leak_stopped = run.ls.leak_stopped;
     return out;

@@ -121,7 +121,7 @@ int run_snake(SnakeOptions& o, const tools::Progress& progress, tools::RunRecord
     std::ostringstream msg;
     msg << std::fixed << std::setprecision(3)
         << (r.converged ? "converged" : r.leak_stopped ? "stopped at a leak (not converged)" : "did NOT converge") << " after "
-        << r.iterations << " iterations (" << r.runs << (r.runs == 1 ? " run" : " runs")
+        << r.iterations << " iterations, " << r.reinitialisations << " re-initialisations (" << r.runs << (r.runs == 1 ? " run" : " runs")
         << (r.competition_used ? ", energy competition on" : "") << "); fields " << r.field_seconds
         << " s, evolution " << r.evolve_seconds << " s; " << std::setprecision(1) << static_cast<double>(inside) * voxel_ml << " mL";
     progress.message(msg.str());
@@ -132,6 +132,7 @@ int run_snake(SnakeOptions& o, const tools::Progress& progress, tools::RunRecord
         prov.timings.emplace_back("snake.evolution", r.evolve_seconds);
         prov.parameters.emplace_back("result.converged", r.converged ? "true" : "false");
         prov.parameters.emplace_back("result.iterations", std::to_string(r.iterations));
+        prov.parameters.emplace_back("result.reinitialisations", std::to_string(r.reinitialisations));
         prov.parameters.emplace_back("result.leak_stopped", r.leak_stopped ? "true" : "false");
         prov.parameters.emplace_back("result.runs", std::to_string(r.runs));
         prov.parameters.emplace_back("result.competition_used", r.competition_used ? "true" : "false");

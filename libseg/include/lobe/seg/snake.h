@@ -76,6 +76,7 @@ struct SnakeResult {
     core::LabelImage3D mask;    //!< 1 inside the final contour
     core::ImageF phi;           //!< the final level set
     int iterations = 0;         //!< level-set iterations (of the last run when competition repeated)
+    int reinitialisations = 0;  //!< ... and re-initialisations of φ among them
     bool converged = false;
     bool leak_stopped = false;  //!< the leak stop ended the run: the contour is the one before the
                                 //!< leak spread (converged is false; LevelSetParams::leak_checks)
