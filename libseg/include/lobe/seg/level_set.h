@@ -44,8 +44,10 @@ struct LevelSetParams {
     //! Leak stop (0 = off). The measure is the net growth per check: voxels that became inside
     //! minus those that became outside, per boundary voxel. Once its lowest value is below
     //! `leak_slowdown` times its largest (the front has slowed at the edges), a growth that rises
-    //! at this many checks in a row and ends above `leak_rise` times the lowest (and above
-    //! convergence_tolerance) is a part of the front that broke through a gap and spreads,
+    //! at this many checks in a row, ends above convergence_tolerance, and has risen from the
+    //! lowest by more than the smaller of (`leak_rise` - 1) x the lowest and convergence_tolerance
+    //! (the flicker level; a slow steady leak never rises 1.5x) is a part of the front that broke
+    //! through a gap and spreads,
     //! growing its own front: the run ends and returns φ as it was at the lowest growth.
     int leak_checks = 0;
     double leak_slowdown = 0.25;
