@@ -41,7 +41,8 @@ variants=("full|--shape $work/shape.h5"
           "no competition|--shape $work/shape.h5 --no-competition"
           "no K-means|--shape $work/shape.h5 --no-kmeans"
           "no start slice|--shape $work/shape.h5 --no-start-slice"
-          "no 3-D pass|--shape $work/shape.h5 --no-3d-pass")
+          "no 3-D pass|--shape $work/shape.h5 --no-3d-pass"
+          "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"
 echo "input,variant,seconds,dice,asd_mm,voe,abs_rvd,rmsd_mm,maxd_mm,score,status" > "$csv.tmp"
