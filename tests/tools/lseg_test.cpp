@@ -269,12 +269,21 @@ TEST(LsegSnake, SegmentsASliceFromASeedAndRecordsProvenance)
         const auto prov = h5.provenance();
         ASSERT_EQ(prov.size(), 1u);
         bool converged = false, has_method = false;
+        int iterations = -1, reinitialisations = -1;
         for (const auto& [k, v] : prov[0].parameters) {
             converged = converged || (k == "result.converged" && v == "true");
             has_method = has_method || (k.find("method") != std::string::npos && v == method);
+            if (k == "result.iterations")
+                iterations = std::stoi(v);
+            if (k == "result.reinitialisations")
+                reinitialisations = std::stoi(v);
         }
         EXPECT_TRUE(converged);
         EXPECT_TRUE(has_method);
+        // The front moves 15 mm from the 5 mm seed ball, farther than the band's 4 mm half-width,
+        // so φ was re-initialised at least once, and never more than once per step.
+        EXPECT_GE(reinitialisations, 1) << method;
+        EXPECT_LE(reinitialisations, iterations) << method;
         // A disc of radius 20 found to within about a voxel: Dice > 0.95.
         r = lseg("eval --json " + q(out) + " " + q(ref) + " --slice 1", dir);
         ASSERT_EQ(r.exit_code, 0) << r.err;
