@@ -591,7 +591,7 @@ void Evolver::nearest_patch(Visit& q) const
     q.patch = best_patch;
 }
 
-// Hands each face neighbour of visit t that is neither placed nor queued to push(visit).
+// Hands each face neighbour of `from` that is neither placed nor queued to push(visit).
 template <class Push> void Evolver::expand(const Visit from, Push&& push) // a copy: push may grow visits_
 {
     const std::array<int, 3> ijk{from.i, from.j, from.k};
@@ -816,7 +816,7 @@ bool Evolver::redistance(bool initial)
         }
     }
     // In memory order, not breadth-first order: a step then reads φ's neighbourhoods nearly
-    // sequentially (measured 2x faster per step on a 512 x 512 x 80 volume).
+    // sequentially (the evolution on a 512 x 512 x 80 volume took 13.3 s instead of 22.7 s).
     std::sort(fresh.begin(), fresh.end(), [](const BandVoxel& x, const BandVoxel& y) { return x.idx < y.idx; });
     band_.swap(fresh);
     const Index sy = g_.stride[1], sz = g_.stride[2];
