@@ -77,6 +77,8 @@ struct Simulator::Impl {
     State state;
     std::vector<ProbeParams> probes;
     std::vector<double> force, force_next, dv, v_old, v_pred;
+    State lip_before;                 // the state before a lip correction
+    std::vector<double> lip_scratch; // forces of the energy passes around it
     std::vector<int> touched; // per node: the index + 1 of the probe that moved it this step (-1: held)
     // Forceps: whether the jaws are closed (or have opened again), what they hold and where.
     struct Grasp {
@@ -508,8 +510,22 @@ struct Simulator::Impl {
     {
         if (!grasps.empty())
             hold(s, h);
-        if (!cutting.lips().empty())
-            stats.lip_corrections += cutting.keep_apart(model, s);
+        if (!cutting.lips().empty()) {
+            // The correction moves nodes without a force, so the energy it changes is the
+            // instruments' doing, like a probe's work: the blow-up check must not count it. Two
+            // energy passes, only on the steps that correct a crossing.
+            lip_before.x = s.x;
+            lip_before.v = s.v;
+            lip_before.time = s.time;
+            const int corrected = cutting.keep_apart(model, s);
+            stats.lip_corrections += corrected;
+            if (corrected > 0) {
+                Energy before, after;
+                model.forces(lip_before, lip_scratch, &before);
+                model.forces(s, lip_scratch, &after);
+                probe_work += after.total() - before.total();
+            }
+        }
     }
 
     // One step of size h from `state`, with `force` = forces at `state`. Leaves the new state,
