@@ -423,7 +423,7 @@ std::vector<core::Vec3> Cutting::lip_normals(const State& st) const
     return normal;
 }
 
-int Cutting::keep_apart(const Model& model, State& st)
+int Cutting::keep_apart(const Model& model, State& st, State* before)
 {
     if (candidates_.empty())
         return 0;
@@ -478,6 +478,11 @@ int Cutting::keep_apart(const Model& model, State& st)
             vrel += (st.v[3 * std::size_t(v) + c3] - vf) * n[int(c3)];
         }
         const double mu = vrel < 0 ? -vrel / denom : 0; // inelastic: stop the approach
+        if (before && count == 0) {
+            before->x = st.x;
+            before->v = st.v;
+            before->time = st.time;
+        }
         for (std::size_t c3 = 0; c3 < 3; ++c3) {
             st.x[3 * std::size_t(v) + c3] += lambda * iv * n[int(c3)];
             st.v[3 * std::size_t(v) + c3] += mu * iv * n[int(c3)];

@@ -513,11 +513,8 @@ struct Simulator::Impl {
         if (!cutting.lips().empty()) {
             // The correction moves nodes without a force, so the energy it changes is the
             // instruments' doing, like a probe's work: the blow-up check must not count it. Two
-            // energy passes, only on the steps that correct a crossing.
-            lip_before.x = s.x;
-            lip_before.v = s.v;
-            lip_before.time = s.time;
-            const int corrected = cutting.keep_apart(model, s);
+            // energy passes and a copy of the state, only on the steps that correct a crossing.
+            const int corrected = cutting.keep_apart(model, s, &lip_before);
             stats.lip_corrections += corrected;
             if (corrected > 0) {
                 Energy before, after;

@@ -220,6 +220,7 @@ class Evolver {
     bool interface_site(Index v, int i, int j, int k);
     double patch_distance2(const std::array<double, 3>& x, const Patch& s, double bound) const;
     void nearest_patch(Visit& q) const;
+    template <class F> bool any_face_neighbour(const Visit& q, F&& f) const;
     template <class Push> void expand(Visit from, Push&& push);
     void place(std::size_t begin, std::size_t end);
     bool violates(const Visit& q) const;
@@ -591,27 +592,37 @@ void Evolver::nearest_patch(Visit& q) const
     q.patch = best_patch;
 }
 
-// Hands each face neighbour of `from` that is neither placed nor queued to push(visit).
-template <class Push> void Evolver::expand(const Visit from, Push&& push) // a copy: push may grow visits_
+// Calls f(w, r, a) for each face neighbour w (voxel index r, along axis a) of q inside the grid,
+// until f returns true; returns whether one did.
+template <class F> bool Evolver::any_face_neighbour(const Visit& q, F&& f) const
 {
-    const std::array<int, 3> ijk{from.i, from.j, from.k};
+    const std::array<int, 3> ijk{q.i, q.j, q.k};
     for (std::size_t a = 0; a < 3; ++a) {
         if (!g_.active[a])
             continue;
         for (int sd = -1; sd <= 1; sd += 2) {
-            const int na = ijk[a] + sd;
-            if (na < 0 || na >= g_.n[a])
+            std::array<int, 3> r = ijk;
+            r[a] += sd;
+            if (r[a] < 0 || r[a] >= g_.n[a])
                 continue;
-            const Index w = from.idx + sd * g_.stride[a];
-            auto& sl = slot_[static_cast<std::size_t>(w)];
-            if (sl != -1)
-                continue;
-            sl = -2;
-            std::array<int, 3> q = ijk;
-            q[a] = na;
-            push(Visit{w, q[0], q[1], q[2], 0.f, cur_[w] < 0.f, -1});
+            if (f(q.idx + sd * g_.stride[a], r, a))
+                return true;
         }
     }
+    return false;
+}
+
+// Hands each face neighbour of `from` that is neither placed nor queued to push(visit).
+template <class Push> void Evolver::expand(const Visit from, Push&& push) // a copy: push may grow visits_
+{
+    any_face_neighbour(from, [&](Index w, const std::array<int, 3>& r, std::size_t) {
+        auto& sl = slot_[static_cast<std::size_t>(w)];
+        if (sl == -1) {
+            sl = -2;
+            push(Visit{w, r[0], r[1], r[2], 0.f, cur_[w] < 0.f, -1});
+        }
+        return false;
+    });
 }
 
 // Gives the queued visits [begin, end) their nearest patch and publishes it; they read only the
@@ -634,22 +645,11 @@ void Evolver::place(std::size_t begin, std::size_t end)
 // for the true distance, and for the distance to the neighbour's patch, which is 1-Lipschitz.
 bool Evolver::violates(const Visit& q) const
 {
-    const std::array<int, 3> ijk{q.i, q.j, q.k};
     const double d = nxt_[q.idx], tol = 1e-3 * g_.hmin;
-    for (std::size_t a = 0; a < 3; ++a) {
-        if (!g_.active[a])
-            continue;
-        const double limit = d - g_.h[a] - tol;
-        for (int sd = -1; sd <= 1; sd += 2) {
-            const int na = ijk[a] + sd;
-            if (na < 0 || na >= g_.n[a])
-                continue;
-            const auto w = static_cast<std::size_t>(q.idx + sd * g_.stride[a]);
-            if (slot_[w] >= 0 && double(nxt_[w]) < limit)
-                return true;
-        }
-    }
-    return false;
+    return any_face_neighbour(q, [&](Index w, const std::array<int, 3>&, std::size_t a) {
+        const auto u = static_cast<std::size_t>(w);
+        return slot_[u] >= 0 && double(nxt_[u]) < d - g_.h[a] - tol;
+    });
 }
 
 // The levels count face steps, not millimetres, and the voxels of one level do not see each
@@ -705,33 +705,22 @@ void Evolver::repair(std::size_t first)
         }
         place(placed, visits_.size());
         std::vector<Visit> next;
-        for (const Visit& q : cand) {
-            const std::array<int, 3> ijk{q.i, q.j, q.k};
-            for (std::size_t a = 0; a < 3; ++a) {
-                if (!g_.active[a])
-                    continue;
-                for (int sd = -1; sd <= 1; sd += 2) {
-                    const int na = ijk[a] + sd;
-                    if (na < 0 || na >= g_.n[a])
-                        continue;
-                    const Index w = q.idx + sd * g_.stride[a];
-                    const auto u = static_cast<std::size_t>(w);
-                    const std::int32_t pt = slot_[u];
-                    // Placed, not an interface voxel (whose own patch defines the front), not
-                    // already a candidate.
-                    if (pt < 0 || (static_cast<std::size_t>(pt) < first && visits_[static_cast<std::size_t>(pt)].idx == w) ||
-                        (flags_[u] & kRepairQueued))
-                        continue;
-                    std::array<int, 3> r = ijk;
-                    r[a] = na;
-                    const Visit cw{w, r[0], r[1], r[2], nxt_[u], cur_[w] < 0.f, pt};
-                    if (violates(cw)) {
-                        flags_[u] |= kRepairQueued;
-                        next.push_back(cw);
-                    }
+        for (const Visit& q : cand)
+            any_face_neighbour(q, [&](Index w, const std::array<int, 3>& r, std::size_t) {
+                const auto u = static_cast<std::size_t>(w);
+                const std::int32_t pt = slot_[u];
+                // Placed, not an interface voxel (whose own patch defines the front), not
+                // already a candidate.
+                if (pt < 0 || (static_cast<std::size_t>(pt) < first && visits_[static_cast<std::size_t>(pt)].idx == w) ||
+                    (flags_[u] & kRepairQueued))
+                    return false;
+                const Visit cw{w, r[0], r[1], r[2], nxt_[u], cur_[w] < 0.f, pt};
+                if (violates(cw)) {
+                    flags_[u] |= kRepairQueued;
+                    next.push_back(cw);
                 }
-            }
-        }
+                return false;
+            });
         for (const Visit& q : next)
             flags_[static_cast<std::size_t>(q.idx)] &= static_cast<std::uint8_t>(~kRepairQueued);
         cand.swap(next);

@@ -42,8 +42,9 @@ public:
     // gone behind another cut face (within half an edge, over the face) is projected back onto
     // it, the face's vertices taking their share by mass, with an inelastic velocity correction
     // (momentum is kept). Faces that touch the vertex's own neighbourhood are not obstacles.
-    // Returns the corrections made.
-    int keep_apart(const Model& model, State& state);
+    // Returns the corrections made; `before`, if given, receives the state as it was before the
+    // first of them (left alone when there is none).
+    int keep_apart(const Model& model, State& state, State* before = nullptr);
 
     // Rebuilds the list of cut faces (boundary faces with every vertex on a cut) after a change.
     void refresh_lips(const Model& model);
