@@ -473,7 +473,60 @@ void check_image(const core::ImageF& hu, const char* who)
             throw core::InvalidInputError(std::string(who) + ": the image has non-finite values");
 }
 
+// The q-quantile of the volume's values, from a strided sample of at most about a million
+// voxels (a 512 x 512 x 200 CT would otherwise be copied whole).
+double sampled_quantile(const core::ImageF& v, double q)
+{
+    const std::size_t n = v.data.size();
+    const std::size_t stride = std::max<std::size_t>(1, n / (std::size_t(1) << 20));
+    std::vector<float> sample;
+    sample.reserve(n / stride + 1);
+    for (std::size_t i = 0; i < n; i += stride)
+        sample.push_back(v.data[i]);
+    const auto at = static_cast<std::ptrdiff_t>(std::min(sample.size() - 1, static_cast<std::size_t>(q * double(sample.size()))));
+    std::nth_element(sample.begin(), sample.begin() + at, sample.end());
+    return double(sample[static_cast<std::size_t>(at)]);
+}
+
 } // namespace
+
+const char* modality_name(Modality modality)
+{
+    switch (modality) {
+    case Modality::Ct:
+        return "CT";
+    case Modality::Mr:
+        return "MR";
+    case Modality::Auto:
+        break;
+    }
+    return "auto";
+}
+
+Modality detect_modality(const core::ImageF& volume, double ct_air_fraction)
+{
+    if (volume.data.empty())
+        throw core::InvalidInputError("detect_modality: the image is empty");
+    if (!(ct_air_fraction > 0.0 && ct_air_fraction <= 1.0))
+        throw core::InvalidInputError("detect_modality: ct_air_fraction must be in (0, 1], is " +
+                                      std::to_string(ct_air_fraction));
+    const auto air = std::count_if(volume.data.begin(), volume.data.end(), [](float v) { return v < -500.f; });
+    return double(air) >= ct_air_fraction * double(volume.data.size()) ? Modality::Ct : Modality::Mr;
+}
+
+core::ImageF mr_liver_contrast(const core::ImageF& mr, double liver_value, double liver_sigma, double noise_hu)
+{
+    if (!std::isfinite(liver_value) || !(liver_sigma > 0.0) || !std::isfinite(liver_sigma) || !(noise_hu > 0.0) ||
+        !std::isfinite(noise_hu))
+        throw core::InvalidInputError("mr_liver_contrast: the liver value must be finite and liver_sigma and noise_hu "
+                                      "positive (are " + std::to_string(liver_value) + ", " +
+                                      std::to_string(liver_sigma) + ", " + std::to_string(noise_hu) + ")");
+    core::ImageF out = mr;
+    const double s = noise_hu / liver_sigma;
+    for (float& v : out.data)
+        v = static_cast<float>(std::max(-1000.0, 100.0 - s * std::abs(double(v) - liver_value)));
+    return out;
+}
 
 SnakeParams default_liver_snake()
 {
@@ -519,37 +572,65 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     std::vector<std::pair<std::string, double>> timings;
     auto lap = [&](const std::string& name, Clock::time_point t) { timings.emplace_back(name, seconds_since(t)); };
 
+    const Modality modality =
+        params.modality == Modality::Auto ? detect_modality(hu, params.ct_air_fraction) : params.modality;
+    const bool mr = modality == Modality::Mr;
+    say(std::string(modality_name(modality)) + " volume" +
+        (params.modality == Modality::Auto ? (mr ? " (no voxel reads as air in HU)" : " (air below -500 HU)") : ""));
+
     auto t = Clock::now();
     StartSliceResult start;
-    if (params.use_start_slice) {
+    if (params.use_start_slice && !mr) {
         start = find_start_slice(hu, params.start);
         say(start.found ? "start slice " + std::to_string(start.slice) + " (heart and lungs), rotation " +
                               std::to_string(static_cast<int>(std::lround(start.rotation_deg))) + " deg"
                         : "no heart/lung slice: " + start.message);
     } else {
-        start.message = "start slice search switched off";
+        start.message = mr ? "no start slice on MR (the heart template is a CT's)" : "start slice search switched off";
     }
     lap("start slice", t);
 
     t = Clock::now();
-    const LiverSeedResult seed = seed_liver(hu, start, params.seed);
+    LiverSeedParams seed_params = params.seed;
+    if (mr) {
+        // The MR's own units: the body and the plausible liver grey levels from its histogram.
+        const double p99 = sampled_quantile(hu, 0.99);
+        if (!(p99 > 0.0))
+            throw LiverNotFoundError("no liver found: read as MR, the volume has no signal (99th percentile " +
+                                     std::to_string(p99) + ")");
+        seed_params.body_threshold = params.mr.body_fraction * p99;
+        seed_params.liver_range_lo = params.mr.liver_lo_fraction * p99;
+        seed_params.liver_range_hi = params.mr.liver_hi_fraction * p99;
+        seed_params.acceptance_sigma = params.mr.acceptance_sigma;
+    }
+    const LiverSeedResult seed = seed_liver(hu, start, seed_params);
     lap("seed", t);
     if (!seed.found)
         throw LiverNotFoundError("no liver found: " + seed.message);
     say("seed on slice " + std::to_string(seed.slice) + ": " + std::to_string(static_cast<int>(seed.area_mm2 / 100)) +
         " cm2, liver grey level " + std::to_string(static_cast<int>(std::lround(seed.liver_value))));
 
+    // MR: from here on the pipeline sees the liver-contrast map, in which the liver reads as in a CT.
+    core::ImageF mapped;
+    if (mr) {
+        t = Clock::now();
+        mapped = mr_liver_contrast(hu, seed.liver_value, seed.liver_sigma, params.mr.noise_hu);
+        lap("MR contrast map", t);
+    }
+    const core::ImageF& work = mr ? mapped : hu;
+
     t = Clock::now();
     RibCageResult ribs;
-    if (params.use_rib_cage) {
+    const bool use_ribs = params.use_rib_cage && !mr;
+    if (use_ribs) {
         ribs = rib_cage(hu, params.ribs);
         const auto valid = std::count(ribs.valid.begin(), ribs.valid.end(), std::uint8_t(1));
         say("rib cage ring on " + std::to_string(valid) + " of " + std::to_string(hu.size[2]) + " slices");
     }
     lap("rib cage", t);
 
-    Context c{hu, params, progress, nullptr, nullptr, -1, {}};
-    c.ribs = params.use_rib_cage ? &ribs : nullptr;
+    Context c{work, params, progress, nullptr, nullptr, -1, {}};
+    c.ribs = use_ribs ? &ribs : nullptr;
     c.memory = params.use_shape_memory ? memory : nullptr;
     // The start slice shows the heart between both lungs above the liver's dome (thesis L4616):
     // the propagation upward ends below it.
@@ -557,7 +638,7 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
         c.top_slice = start.slice;
     // The liver's grey level and spread on the smoothed image the layers are cut from, under
     // the seed (this patient, this scan).
-    const core::ImageF seed_img = core::axial_slice(hu, seed.slice);
+    const core::ImageF seed_img = core::axial_slice(work, seed.slice);
     c.tissue = tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed.mask, seed_img.geometry()));
     LiverResult r = propagate(c, seed.mask, seed.slice);
     for (const auto& tm : r.timings)
@@ -565,6 +646,7 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     r.stacked = r.mask;
     r.start = start;
     r.seed = seed;
+    r.modality = modality;
 
     if (params.use_3d_pass) {
         t = Clock::now();

@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -201,4 +202,88 @@ TEST(LiverPipeline, PropagationChecksItsSeed)
     core::ImageGeometry wrong = gs;
     wrong.size[0] = 16;
     EXPECT_THROW(seg::propagate_liver(img, core::LabelImage3D(wrong, 1), 3), core::InvalidInputError);
+}
+
+namespace {
+
+// A T1-weighted-looking volume made from a CT phantom: a piecewise-linear map of HU in which fat
+// is brightest, the liver the brightest soft tissue, muscle, fluid, blood and bone darker, air and
+// lung black (relative grey levels as in mr-small: liver 97, wall muscle 20-60, fat 200-550), times
+// a smooth shading of +-15 % across the body (MR's intensity inhomogeneity).
+core::ImageF t1_like(const core::ImageF& hu)
+{
+    static const std::array<std::pair<float, float>, 8> knots = {{{-1000.f, 0.f},
+                                                                 {-800.f, 10.f},
+                                                                 {-100.f, 450.f},
+                                                                 {10.f, 40.f},
+                                                                 {50.f, 55.f},
+                                                                 {105.f, 100.f},
+                                                                 {160.f, 50.f},
+                                                                 {600.f, 20.f}}};
+    core::ImageF out = hu;
+    const int nx = hu.size[0];
+    for (std::size_t v = 0; v < out.data.size(); ++v) {
+        const float h = std::clamp(hu.data[v], knots.front().first, knots.back().first);
+        std::size_t i = 1;
+        while (i + 1 < knots.size() && h > knots[i].first)
+            ++i;
+        const auto [x0, y0] = knots[i - 1];
+        const auto [x1, y1] = knots[i];
+        const float t1 = y0 + (y1 - y0) * (h - x0) / (x1 - x0);
+        const double x = double(static_cast<int>(v % static_cast<std::size_t>(nx))) / (nx - 1); // 0 right .. 1 left
+        out.data[v] = static_cast<float>(double(t1) * (1.15 - 0.3 * x));
+    }
+    return out;
+}
+
+} // namespace
+
+// Auto's rule on what it will meet: a CT has air (below -500 HU) outside the body and in the
+// lungs; an MR magnitude image has no value there.
+TEST(LiverPipeline, ModalityIsDetectedFromAir)
+{
+    const Case c = phantom_case({2.8, 2.8, 5.0}, 2);
+    EXPECT_EQ(seg::detect_modality(c.hu), seg::Modality::Ct);
+    EXPECT_EQ(seg::detect_modality(t1_like(c.hu)), seg::Modality::Mr);
+    EXPECT_THROW(seg::detect_modality(c.hu, 0.0), core::InvalidInputError);
+    EXPECT_THROW(seg::detect_modality(core::ImageF{}), core::InvalidInputError);
+    EXPECT_STREQ(seg::modality_name(seg::Modality::Mr), "MR");
+}
+
+// The map's arithmetic: the liver value reads 100, noise_hu per liver sd away from it on either
+// side, floored at -1000; nonsense parameters are refused.
+TEST(LiverPipeline, MrLiverContrastMap)
+{
+    core::ImageGeometry g;
+    g.size = {4, 1, 1};
+    core::ImageF mr(g);
+    mr.data = {97.f, 82.f, 127.f, 5000.f};
+    const core::ImageF m = seg::mr_liver_contrast(mr, 97.0, 15.0, 30.0);
+    EXPECT_NEAR(m.data[0], 100.f, 1e-4);
+    EXPECT_NEAR(m.data[1], 70.f, 1e-4);  // one sd darker
+    EXPECT_NEAR(m.data[2], 40.f, 1e-4);  // two sd brighter
+    EXPECT_EQ(m.data[3], -1000.f);
+    EXPECT_THROW(seg::mr_liver_contrast(mr, 97.0, 0.0, 30.0), core::InvalidInputError);
+    EXPECT_THROW(seg::mr_liver_contrast(mr, std::numeric_limits<double>::quiet_NaN(), 15.0, 30.0), core::InvalidInputError);
+    EXPECT_THROW(seg::mr_liver_contrast(mr, 97.0, 15.0, -1.0), core::InvalidInputError);
+}
+
+// The MR path end to end on a T1-like phantom (1.4 x 1.4 x 5 mm, noise seed 7, not used
+// elsewhere): detected as MR, seeded inside the liver on the MR's own grey levels (not in the
+// dark, homogeneous lungs that a plain [0, 99th percentile] range picked), segmented on the
+// liver-contrast map. Measured: Dice 0.838, ASD 7.7 mm, RVD -5.4 % (the coarse phantom's heart and
+// kidney contacts, as on its CT: LiverPipeline.CoarsePhantomIsFound).
+TEST(LiverPipeline, T1LikePhantomIsSegmentedAsMr)
+{
+    const Case c = phantom_case({1.4, 1.4, 5.0}, 7);
+    const seg::LiverResult r = seg::segment_liver(t1_like(c.hu));
+    EXPECT_EQ(r.modality, seg::Modality::Mr);
+    EXPECT_FALSE(r.start.found); // no heart template on MR
+    ASSERT_TRUE(r.seed.found) << r.seed.message;
+    EXPECT_GE(precision_in(r.seed.mask, core::axial_slice(c.truth, r.seed.slice)), 0.99) << r.seed.message;
+    const auto m = seg::evaluate_segmentation(r.mask, c.truth);
+    std::cerr << "T1-like phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd << " %\n";
+    EXPECT_GE(m.dice, 0.80);
+    EXPECT_LE(m.surface.average, 9.5);
+    EXPECT_LE(std::abs(m.rvd), 15.0);
 }

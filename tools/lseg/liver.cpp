@@ -9,10 +9,12 @@
 #include "lobe/io/image_io.h"
 #include "lobe/seg/liver.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <iomanip>
 #include <memory>
 #include <sstream>
+#include <vector>
 
 namespace lobe::lseg {
 namespace fs = std::filesystem;
@@ -23,6 +25,7 @@ struct LiverOptions {
     fs::path image, out, mask_out, png_dir, shape;
     std::string image_name = "ct";
     std::string convention = "sliver07";
+    std::string modality = "auto";
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false, no_shape_memory = false, no_3d_pass = false,
          layer_stop = false;
     seg::LiverParams params;
@@ -56,8 +59,21 @@ void write_pictures(const fs::path& dir, const core::ImageF& image, const seg::L
     ov.colours = {{1, {255, 200, 0}, "liver"}};
     const std::pair<tools::SliceAxis, int> views[] = {
         {tools::SliceAxis::Axial, centre[2]}, {tools::SliceAxis::Coronal, centre[1]}, {tools::SliceAxis::Sagittal, centre[0]}};
+    // An MR has no HU: its window spans the 1st to the 99th percentile of a strided sample.
+    double window = tools::PictureParams{}.window, level = tools::PictureParams{}.level;
+    if (r.modality == seg::Modality::Mr) {
+        std::vector<float> sample;
+        for (std::size_t i = 0; i < image.data.size(); i += 1 + image.data.size() / 100000)
+            sample.push_back(image.data[i]);
+        std::sort(sample.begin(), sample.end());
+        const double lo = sample[sample.size() / 100], hi = sample[sample.size() * 99 / 100];
+        window = std::max(hi - lo, 1.0);
+        level = 0.5 * (lo + hi);
+    }
     for (const auto& [axis, index] : views) {
         tools::PictureParams pp;
+        pp.window = window;
+        pp.level = level;
         pp.axis = axis;
         pp.index = index;
         pp.caption = "lseg liver: " + fixed(r.volume_ml, 0) + " mL";
@@ -78,6 +94,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     if (o.no_competition)
         p.snake.competition = seg::CompetitionMode::Off;
     p.post.convention = o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
+    p.modality = o.modality == "ct" ? seg::Modality::Ct : o.modality == "mr" ? seg::Modality::Mr : seg::Modality::Auto;
 
     // The container keeps the image in its own type (a CT stays int16, half the bytes of float).
     const core::AnyImage source = timings.time("read image", [&] { return read_any(o.image, o.image_name); });
@@ -112,6 +129,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
             prov.timings.emplace_back("liver." + name, seconds);
         auto param = [&](const std::string& k, const std::string& v) { prov.parameters.emplace_back(k, v); };
         param("result.volume_ml", fixed(r.volume_ml, 3));
+        param("result.modality", seg::modality_name(r.modality));
         param("result.first_slice", std::to_string(r.first_slice));
         param("result.last_slice", std::to_string(r.last_slice));
         param("result.seed_slice", std::to_string(r.seed_slice));
@@ -125,8 +143,9 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_rejected", std::to_string(rejected));
         param("result.slices_recovered", std::to_string(recovered));
         param("result.slices_iteration_bound", std::to_string(bounded));
-        param("components", std::string(p.use_start_slice ? "start-slice " : "") + (p.use_kmeans ? "kmeans " : "") +
-                                (p.use_rib_cage ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
+        const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
+        param("components", std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
+                                (p.use_kmeans ? "kmeans " : "") + (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
                                 (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                                 (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
@@ -165,6 +184,11 @@ Command add_liver(CLI::App& lseg)
     cmd->add_option("--convention", o->convention,
                     "sliver07: vessels, tumours and the enclosed IVC are liver | parenchyma: they are not")
         ->check(CLI::IsMember({"sliver07", "parenchyma"}))
+        ->capture_default_str();
+    cmd->add_option("--modality", o->modality,
+                    "auto: CT if any voxels read as air (below -500), else MR | ct: HU | mr: the MR path "
+                    "(seed on the MR's grey levels, then the liver-contrast map; no start slice, no rib cage)")
+        ->check(CLI::IsMember({"auto", "ct", "mr"}))
         ->capture_default_str();
     cmd->add_flag("--no-start-slice", o->no_start_slice, "Ablation: no rotating-template start slice");
     cmd->add_flag("--no-competition", o->no_competition, "Ablation: no energy competition between slices");

@@ -41,6 +41,48 @@ struct LiverSliceReport {
 //! The default per-slice snake of the liver pipeline: CDSG, energy competition Auto.
 SnakeParams default_liver_snake();
 
+//! The scanner a volume comes from: it decides how the pipeline reads its grey levels.
+enum class Modality {
+    Auto, //!< CT if at least `LiverParams::ct_air_fraction` of the voxels read below -500 (air
+          //!< outside the body, lung, bowel gas in HU; an MR magnitude image has none), else MR
+    Ct,   //!< Hounsfield units
+    Mr,   //!< arbitrary units, read through `MrParams`
+};
+
+//! "CT" or "MR" ("auto" for Auto).
+const char* modality_name(Modality modality);
+
+//! How `segment_liver` reads an MR volume (docs/algorithms/liver.md, "MRI"): the seed is found
+//! on the MR's own grey levels, then the whole volume is mapped by `mr_liver_contrast` and the
+//! CT pipeline runs on the map, without the start slice (its heart template is a CT's) and the
+//! rib cage (MR shows no bright bone).
+struct MrParams {
+    double body_fraction = 0.25;   //!< the seed's body: above this fraction of the volume's 99th
+                                   //!< percentile (in T1 the bright fat under the skin closes it)
+    double liver_lo_fraction = 0.08; //!< the liver's plausible grey levels: this fraction of the
+    double liver_hi_fraction = 0.6;  //!< 99th percentile to this one (T1: air and lung below,
+                                   //!< fat above; the CT path's 40-200 HU)
+    double acceptance_sigma = 2.0; //!< seed cells within this many noise sd of the liver's grey
+                                   //!< level (MR shading spreads the liver's cell means; 1 sd, the
+                                   //!< CT default, found 4.9 cm2 of cells on mr-small)
+    double noise_hu = 30.0;        //!< the map scales the liver's noise sd to this many pseudo-HU:
+                                   //!< twice a contrast CT's liver noise, so that a T1 neighbour
+                                   //!< darker than the liver by about 5 sd (the wall muscles)
+                                   //!< reads below 0, as fat does in CT (chosen on mr-small, the
+                                   //!< one MR at hand: docs/algorithms/liver.md, "MRI")
+};
+
+//! Auto's rule: CT if at least `ct_air_fraction` of the voxels read below -500.
+//! \throw core::InvalidInputError for an empty image or a fraction outside (0, 1].
+Modality detect_modality(const core::ImageF& volume, double ct_air_fraction = 1e-3);
+
+//! The liver-contrast image of an MR volume: 100 - (noise_hu / liver_sigma) |v - liver_value|,
+//! floored at -1000. The liver reads about 100 with noise_hu spread, and every other tissue,
+//! darker (muscle, kidney, spleen, fluid in T1) or brighter (fat), reads lower, as the tissues
+//! around the liver do in a contrast CT's liver window. \throw core::InvalidInputError for a
+//! non-finite liver value or a liver_sigma or noise_hu that is not positive.
+core::ImageF mr_liver_contrast(const core::ImageF& mr, double liver_value, double liver_sigma, double noise_hu);
+
 //! Inputs of `segment_liver`. `{}` is the documented default; each `use_*` switch turns one
 //! component off for the ablation chart (bench/seg/liver_bench).
 struct LiverParams {
@@ -79,6 +121,9 @@ struct LiverParams {
     bool use_3d_pass = true;        //!< smooth the stack, fill holes, apply the convention
     double rib_background_hu = -100.0; //!< what lies outside the rib cage becomes (fat)
     int min_slices = 5;             //!< fewer slices: refuse (a volume, not a slice, is needed)
+    Modality modality = Modality::Auto; //!< CT, MR, or detected (detect_modality)
+    double ct_air_fraction = 1e-3;  //!< Auto: CT if at least this fraction of voxels is below -500
+    MrParams mr;                    //!< used when the volume is MR
     StartSliceParams start;
     LiverSeedParams seed;
     KMeansParams kmeans;
@@ -102,6 +147,7 @@ struct LiverResult {
     StartSliceResult start;         //!< the rotating template's answer
     LiverSeedResult seed;           //!< the seed region
     int seed_slice = -1;            //!< where the propagation started
+    Modality modality = Modality::Ct; //!< how the volume was read (never Auto)
     int first_slice = -1;           //!< lowest k with liver
     int last_slice = -1;            //!< highest k with liver
     double volume_ml = 0;
@@ -120,7 +166,8 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
                             const LiverParams& params = {}, const LiverProgress& progress = {});
 
 //! The whole pipeline: start slice, seed, rib cage, propagation with K-means layers and the
-//! shape memory (may be null), 3-D pass. \throw LiverNotFoundError when no liver is found (with
+//! shape memory (may be null), 3-D pass. `hu` is a CT in HU or an MR in its own units
+//! (`LiverParams::modality`). \throw LiverNotFoundError when no liver is found (with
 //! the reason), InvalidInputError for an image it cannot take (too few slices, non-finite).
 LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params = {}, const ShapeMemory* memory = nullptr,
                           const LiverProgress& progress = {});
