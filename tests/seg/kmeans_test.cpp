@@ -6,6 +6,8 @@
 #include "lobe/core/errors.h"
 #include "lobe/seg/edge_map.h"
 
+#include "common/timing.h"
+
 #if __has_include("lphantom/phantom.h")
 #include "lphantom/phantom.h"
 #define LOBE_HAVE_PHANTOM 1
@@ -361,9 +363,9 @@ TEST(KMeans, PhantomLiverLayerCoversTheLiver)
 #endif
 
 // Speed: the pipeline calls K-means and the layer mask per 512 x 512 slice. Measured ~2-3 ms
-// together on the shared 2-core machine under load (docs/algorithms/kmeans.md); the bound is
-// generous so that a loaded CI run does not fail, but still catches an O(N K iterations) regression
-// (pixel Lloyd: ~60 ms).
+// together on the shared 2-core AMD machine under load (docs/algorithms/kmeans.md), 7.6 ms on the
+// Intel one of 2026-11-26; the bound is generous so that a loaded CI run does not fail, but still
+// catches an O(N K iterations) regression (pixel Lloyd: ~60 ms). Scaled in a sanitizer build.
 TEST(KMeans, A512SliceTakesAFewMilliseconds)
 {
     const auto g = grid2d(512, 512);
@@ -384,7 +386,7 @@ TEST(KMeans, A512SliceTakesAFewMilliseconds)
         ASSERT_FALSE(lr.mask.data.empty());
     }
     std::cout << "kmeans_layers + layer_mask on 512 x 512: " << best << " ms (best of 5)\n";
-    EXPECT_LT(best, 20.0);
+    EXPECT_LT(best, test::time_bound(20.0));
 }
 
 // Degenerate inputs fail safely: documented results or a clear error, never NaN.

@@ -8,6 +8,8 @@
 #include "lobe/seg/distance_transform.h"
 #include "lobe/seg/snake.h"
 
+#include "common/timing.h"
+
 #if __has_include("lphantom/phantom.h")
 #include "lphantom/phantom.h"
 #define LOBE_HAVE_PHANTOM 1
@@ -272,7 +274,8 @@ TEST(RibCage, BadParametersAreRefused)
 }
 
 // Speed: 512 x 512 x 80 (the phantom's grid). Measured ~0.25 s on the shared 2-core machine
-// under load (docs/algorithms/rib_cage.md); the bound leaves room for a loaded CI.
+// under load (docs/algorithms/rib_cage.md), 0.36 s on the Intel one of 2026-11-26 (0.63 s under
+// ASan+UBSan); the bound leaves room for a loaded CI and is scaled in a sanitizer build.
 TEST(RibCage, A512x512x80VolumeTakesWellUnderTwoSeconds)
 {
     const Torso t = torso(512, 80, 0.7);
@@ -281,7 +284,7 @@ TEST(RibCage, A512x512x80VolumeTakesWellUnderTwoSeconds)
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::cout << "rib_cage on 512 x 512 x 80: " << s << " s\n";
     EXPECT_EQ(std::count(r.valid.begin(), r.valid.end(), 1), 80);
-    EXPECT_LT(s, 2.0);
+    EXPECT_LT(s, test::time_bound(2.0));
 }
 
 #ifdef LOBE_HAVE_PHANTOM

@@ -4,6 +4,7 @@
 #include "lobe/seg/shape_memory.h"
 
 #include "common/expect_error.h"
+#include "common/timing.h"
 #include "lphantom/phantom.h"
 
 #include <gtest/gtest.h>
@@ -372,7 +373,7 @@ TEST(ShapeMemory, CheckOnAFullSizeSliceIsFast)
     std::printf("check + envelope on 512 x 512: %.1f ms\n", ms);
     EXPECT_TRUE(c.plausible) << c.reason;
     EXPECT_GT(count(env), count(a));
-    EXPECT_LT(ms, 200.0); // generous: a loaded 2-core machine
+    EXPECT_LT(ms, test::time_bound(200.0)); // generous: a loaded 2-core machine
 }
 
 TEST(ShapeMemory, EmptyCandidateIsImplausibleNotNaN)
