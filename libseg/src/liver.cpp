@@ -5,6 +5,8 @@
 #include "lobe/seg/distance_transform.h"
 #include "lobe/seg/edge_map.h"
 
+#include "detail/volume.h"
+
 #include <omp.h>
 #include <opencv2/imgproc.hpp>
 
@@ -483,9 +485,7 @@ double sampled_quantile(const core::ImageF& v, double q)
     sample.reserve(n / stride + 1);
     for (std::size_t i = 0; i < n; i += stride)
         sample.push_back(v.data[i]);
-    const auto at = static_cast<std::ptrdiff_t>(std::min(sample.size() - 1, static_cast<std::size_t>(q * double(sample.size()))));
-    std::nth_element(sample.begin(), sample.begin() + at, sample.end());
-    return double(sample[static_cast<std::size_t>(at)]);
+    return detail::quantile(std::move(sample), q);
 }
 
 } // namespace
@@ -519,8 +519,9 @@ core::ImageF mr_liver_contrast(const core::ImageF& mr, double liver_value, doubl
     if (!std::isfinite(liver_value) || !(liver_sigma > 0.0) || !std::isfinite(liver_sigma) || !(noise_hu > 0.0) ||
         !std::isfinite(noise_hu))
         throw core::InvalidInputError("mr_liver_contrast: the liver value must be finite and liver_sigma and noise_hu "
-                                      "positive (are " + std::to_string(liver_value) + ", " +
-                                      std::to_string(liver_sigma) + ", " + std::to_string(noise_hu) + ")");
+                                      "positive (are " +
+                                      std::to_string(liver_value) + ", " + std::to_string(liver_sigma) + ", " +
+                                      std::to_string(noise_hu) + ")");
     core::ImageF out = mr;
     const double s = noise_hu / liver_sigma;
     for (float& v : out.data)

@@ -213,13 +213,13 @@ namespace {
 core::ImageF t1_like(const core::ImageF& hu)
 {
     static const std::array<std::pair<float, float>, 8> knots = {{{-1000.f, 0.f},
-                                                                 {-800.f, 10.f},
-                                                                 {-100.f, 450.f},
-                                                                 {10.f, 40.f},
-                                                                 {50.f, 55.f},
-                                                                 {105.f, 100.f},
-                                                                 {160.f, 50.f},
-                                                                 {600.f, 20.f}}};
+                                                                  {-800.f, 10.f},
+                                                                  {-100.f, 450.f},
+                                                                  {10.f, 40.f},
+                                                                  {50.f, 55.f},
+                                                                  {105.f, 100.f},
+                                                                  {160.f, 50.f},
+                                                                  {600.f, 20.f}}};
     core::ImageF out = hu;
     const int nx = hu.size[0];
     for (std::size_t v = 0; v < out.data.size(); ++v) {
@@ -260,11 +260,12 @@ TEST(LiverPipeline, MrLiverContrastMap)
     mr.data = {97.f, 82.f, 127.f, 5000.f};
     const core::ImageF m = seg::mr_liver_contrast(mr, 97.0, 15.0, 30.0);
     EXPECT_NEAR(m.data[0], 100.f, 1e-4);
-    EXPECT_NEAR(m.data[1], 70.f, 1e-4);  // one sd darker
-    EXPECT_NEAR(m.data[2], 40.f, 1e-4);  // two sd brighter
+    EXPECT_NEAR(m.data[1], 70.f, 1e-4); // one sd darker
+    EXPECT_NEAR(m.data[2], 40.f, 1e-4); // two sd brighter
     EXPECT_EQ(m.data[3], -1000.f);
     EXPECT_THROW(seg::mr_liver_contrast(mr, 97.0, 0.0, 30.0), core::InvalidInputError);
-    EXPECT_THROW(seg::mr_liver_contrast(mr, std::numeric_limits<double>::quiet_NaN(), 15.0, 30.0), core::InvalidInputError);
+    EXPECT_THROW(seg::mr_liver_contrast(mr, std::numeric_limits<double>::quiet_NaN(), 15.0, 30.0),
+                 core::InvalidInputError);
     EXPECT_THROW(seg::mr_liver_contrast(mr, 97.0, 15.0, -1.0), core::InvalidInputError);
 }
 

@@ -103,6 +103,11 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_EQ(r.exit_code, 1) << r.err; // a bad command line: no iteration at all
     EXPECT_NE(r.err.find("--max-iterations"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "e.h5"));
+
+    r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "f.h5") + " --modality pet", dir);
+    EXPECT_EQ(r.exit_code, 1) << r.err; // a bad command line: no such modality
+    EXPECT_NE(r.err.find("--modality"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "f.h5"));
 }
 
 // The real MR at hand (../shared/data/mr-small: T1, 117 x 91 x 20, 3 mm; its reference is
@@ -122,7 +127,8 @@ TEST(LsegLiver, SegmentsTheRealMrAsMr)
     ASSERT_FALSE(prov.empty());
     EXPECT_EQ(parameter(prov.back(), "result.modality"), "MR");
     EXPECT_EQ(parameter(prov.back(), "components").find("rib-cage"), std::string::npos);
-    r = run_lseg("eval " + q(dir / "mr.h5") + " " + q(mr / "labels.mhd") + " --seg-name liver --ref-label 5 --json", dir);
+    r = run_lseg("eval " + q(dir / "mr.h5") + " " + q(mr / "labels.mhd") + " --seg-name liver --ref-label 5 --json",
+                 dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_GE(test::dice_from_eval(r.out), 0.80) << r.out;
 

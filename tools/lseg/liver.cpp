@@ -144,8 +144,10 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_recovered", std::to_string(recovered));
         param("result.slices_iteration_bound", std::to_string(bounded));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
-        param("components", std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
-                                (p.use_kmeans ? "kmeans " : "") + (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
+        param("components", std::string(p.use_start_slice && ct ? "start-slice " : "") +
+                                (ct ? "" : "mr-contrast-map ") + (p.use_kmeans ? "kmeans " : "") +
+                                (p.use_rib_cage && ct ? "rib-cage " : "") +
+                                (memory && p.use_shape_memory ? "shape-memory " : "") +
                                 (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                                 (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
@@ -185,9 +187,10 @@ Command add_liver(CLI::App& lseg)
                     "sliver07: vessels, tumours and the enclosed IVC are liver | parenchyma: they are not")
         ->check(CLI::IsMember({"sliver07", "parenchyma"}))
         ->capture_default_str();
-    cmd->add_option("--modality", o->modality,
-                    "auto: CT if any voxels read as air (below -500), else MR | ct: HU | mr: the MR path "
-                    "(seed on the MR's grey levels, then the liver-contrast map; no start slice, no rib cage)")
+    cmd->add_option(
+           "--modality", o->modality,
+           "auto: CT if at least 0.1 % of the voxels read as air (below -500), else MR | ct: HU | mr: the MR path "
+           "(seed on the MR's grey levels, then the liver-contrast map; no start slice, no rib cage)")
         ->check(CLI::IsMember({"auto", "ct", "mr"}))
         ->capture_default_str();
     cmd->add_flag("--no-start-slice", o->no_start_slice, "Ablation: no rotating-template start slice");

@@ -57,19 +57,19 @@ const char* modality_name(Modality modality);
 //! CT pipeline runs on the map, without the start slice (its heart template is a CT's) and the
 //! rib cage (MR shows no bright bone).
 struct MrParams {
-    double body_fraction = 0.25;   //!< the seed's body: above this fraction of the volume's 99th
-                                   //!< percentile (in T1 the bright fat under the skin closes it)
+    double body_fraction = 0.25;     //!< the seed's body: above this fraction of the volume's 99th
+                                     //!< percentile (in T1 the bright fat under the skin closes it)
     double liver_lo_fraction = 0.08; //!< the liver's plausible grey levels: this fraction of the
     double liver_hi_fraction = 0.6;  //!< 99th percentile to this one (T1: air and lung below,
-                                   //!< fat above; the CT path's 40-200 HU)
-    double acceptance_sigma = 2.0; //!< seed cells within this many noise sd of the liver's grey
-                                   //!< level (MR shading spreads the liver's cell means; 1 sd, the
-                                   //!< CT default, found 4.9 cm2 of cells on mr-small)
-    double noise_hu = 30.0;        //!< the map scales the liver's noise sd to this many pseudo-HU:
-                                   //!< twice a contrast CT's liver noise, so that a T1 neighbour
-                                   //!< darker than the liver by about 5 sd (the wall muscles)
-                                   //!< reads below 0, as fat does in CT (chosen on mr-small, the
-                                   //!< one MR at hand: docs/algorithms/liver.md, "MRI")
+                                     //!< fat above; the CT path's 40-200 HU)
+    double acceptance_sigma = 2.0;   //!< seed cells within this many noise sd of the liver's grey
+                                     //!< level (MR shading spreads the liver's cell means; 1 sd, the
+                                     //!< CT default, found 4.9 cm2 of cells on mr-small)
+    double noise_hu = 30.0;          //!< the map scales the liver's noise sd to this many pseudo-HU:
+                                     //!< twice a contrast CT's liver noise, so that a T1 neighbour
+                                     //!< darker than the liver by about 5 sd (the wall muscles)
+                                     //!< reads below 0, as fat does in CT (chosen on mr-small, the
+                                     //!< one MR at hand: docs/algorithms/liver.md, "MRI")
 };
 
 //! Auto's rule: CT if at least `ct_air_fraction` of the voxels read below -500.
@@ -122,8 +122,8 @@ struct LiverParams {
     double rib_background_hu = -100.0; //!< what lies outside the rib cage becomes (fat)
     int min_slices = 5;             //!< fewer slices: refuse (a volume, not a slice, is needed)
     Modality modality = Modality::Auto; //!< CT, MR, or detected (detect_modality)
-    double ct_air_fraction = 1e-3;  //!< Auto: CT if at least this fraction of voxels is below -500
-    MrParams mr;                    //!< used when the volume is MR
+    double ct_air_fraction = 1e-3;      //!< Auto: CT if at least this fraction of voxels is below -500
+    MrParams mr;                        //!< used when the volume is MR
     StartSliceParams start;
     LiverSeedParams seed;
     KMeansParams kmeans;
