@@ -193,6 +193,11 @@ Command add_liver(CLI::App& lseg)
            "(seed on the MR's grey levels, then the liver-contrast map; no start slice, no rib cage)")
         ->check(CLI::IsMember({"auto", "ct", "mr"}))
         ->capture_default_str();
+    cmd->add_option("--mr-noise", o->params.mr.noise_hu,
+                    "MR path: the liver's noise sd in the liver-contrast map, in pseudo-HU (larger: neighbours "
+                    "a few sd from the liver's grey level read darker; docs/algorithms/liver.md, \"MRI\")")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
     cmd->add_flag("--no-start-slice", o->no_start_slice, "Ablation: no rotating-template start slice");
     cmd->add_flag("--no-competition", o->no_competition, "Ablation: no energy competition between slices");
     cmd->add_flag("--no-kmeans", o->no_kmeans, "Ablation: a fixed band around the seed's grey level, not K-means layers");
