@@ -118,7 +118,11 @@ TEST(LsegVessels, RefusesWithAClearMessageAndNoOutput)
     core::ImageGeometry g;
     g.size = {40, 40, 12};
     g.spacing = {2, 2, 3};
-    io::write_image(dir / "ct.mhd", core::Image3D<std::int16_t>(g, std::int16_t{100}));
+    core::Image3D<std::int16_t> ct(g, std::int16_t{100});
+    for (int k = 0; k < g.size[2]; ++k) // a row of air on each slice: it reads as a CT
+        for (int i = 0; i < g.size[0]; ++i)
+            ct.at(i, 0, k) = -1000;
+    io::write_image(dir / "ct.mhd", ct);
     g.size[2] = 11;
     io::write_image(dir / "other.mhd", core::LabelImage3D(g, 1));
     g.size[2] = 12;
@@ -143,6 +147,36 @@ TEST(LsegVessels, RefusesWithAClearMessageAndNoOutput)
     r = run_lseg("vessels " + q(dir / "ct.mhd") + " -o " + q(dir / "d.h5") + " --link-threshold 2", dir);
     EXPECT_EQ(r.exit_code, 1); // a bad command line
     EXPECT_FALSE(fs::exists(dir / "d.h5"));
+}
+
+// A volume with no air reads as MR (seg::detect_modality): vessels, tumours and all refuse it with
+// exit 2, a message naming the file and the way round, and no output, since their contrast and
+// fluid thresholds are HU; `--modality ct` runs them anyway.
+TEST(LsegVessels, StructuresRefuseAVolumeThatReadsAsMr)
+{
+    const auto dir = test::scratch_dir();
+    core::ImageGeometry g;
+    g.size = {40, 40, 12};
+    g.spacing = {2, 2, 3};
+    io::write_image(dir / "mr.mhd", core::Image3D<std::int16_t>(g, std::int16_t{100}));
+    io::write_image(dir / "liver.mhd", core::LabelImage3D(g, 1));
+    for (const std::string command : {"vessels", "tumours", "all"}) {
+        const fs::path out = dir / (command + ".h5");
+        auto r = run_lseg(command + " " + q(dir / "mr.mhd") + " --liver " + q(dir / "liver.mhd") + " -o " + q(out), dir);
+        EXPECT_EQ(r.exit_code, 2) << command << ": " << r.err;
+        EXPECT_NE(r.err.find("mr.mhd"), std::string::npos) << r.err;
+        EXPECT_NE(r.err.find("reads as MR"), std::string::npos) << r.err;
+        EXPECT_NE(r.err.find("--modality ct"), std::string::npos) << r.err;
+        EXPECT_FALSE(fs::exists(out)) << command;
+        r = run_lseg(command + " " + q(dir / "mr.mhd") + " --liver " + q(dir / "liver.mhd") + " -o " + q(out) +
+                         " --modality ct --quiet",
+                     dir);
+        EXPECT_EQ(r.exit_code, 0) << command << ": " << r.err;
+        EXPECT_TRUE(fs::exists(out)) << command;
+    }
+    const auto r = run_lseg("vessels " + q(dir / "mr.mhd") + " -o " + q(dir / "x.h5") + " --modality mr", dir);
+    EXPECT_EQ(r.exit_code, 1) << r.err; // a bad command line: only auto and ct
+    EXPECT_FALSE(fs::exists(dir / "x.h5"));
 }
 
 // The shared real scans (skipped without ../shared/data). Neither has vessel labels inside the

@@ -36,6 +36,12 @@ void add_liver_options(CLI::App* cmd, LiverSource& source)
                     "for lphantom's labels.mhd)")
         ->delimiter(',');
     cmd->add_option("--shape", source.shape, "Shape memory (`lseg train`) for the automatic liver pipeline");
+    cmd->add_option_function<std::string>(
+           "--modality", [&source](const std::string& m) { source.force_ct = m == "ct"; },
+           "auto: refuse a volume that reads as MR (under 0.1 % of its voxels below -500), since the vessel and "
+           "tumour finders are calibrated for contrast CT in HU | ct: run them on it anyway")
+        ->check(CLI::IsMember({"auto", "ct"}))
+        ->default_str("auto");
 }
 
 namespace {
@@ -106,6 +112,12 @@ StructureInput read_structure_input(const fs::path& image, const std::string& im
     in.h5_input = io::image_format(image) == io::ImageFormat::Hdf5;
     in.source = timings.time("read image", [&] { return read_any(image, in.h5_input ? image_name : ""); });
     in.volume = core::convert_image<float>(in.source);
+    // An MR has no HU: the finders' contrast and fluid thresholds would mean nothing on it.
+    if (!source.force_ct && seg::detect_modality(in.volume) == seg::Modality::Mr)
+        throw core::InvalidInputError(image.string() +
+                                      ": reads as MR (fewer than 0.1 % of its voxels below -500 HU); the vessel and "
+                                      "tumour finders are calibrated for contrast-enhanced CT in HU (give --modality "
+                                      "ct to run them on it anyway)");
     in.liver = obtain_liver(image, in.volume, source, progress, timings, in.liver_from);
     progress.message("liver mask: " + in.liver_from);
     return in;

@@ -22,9 +22,10 @@ struct LiverSource {
     std::string liver_name = "liver";   //!< its label volume when it is a .h5
     std::vector<long long> liver_labels; //!< --liver-label: values counted as liver (empty: non-zero)
     std::filesystem::path shape;        //!< --shape: shape memory for the automatic liver pipeline
+    bool force_ct = false;              //!< --modality ct: run on a volume that reads as MR
 };
 
-//! Adds --liver, --liver-name, --liver-label and --shape to a subcommand.
+//! Adds --liver, --liver-name, --liver-label, --shape and --modality to a subcommand.
 void add_liver_options(CLI::App* cmd, LiverSource& source);
 
 //! The liver mask (0/1) on the grid of `image`: from --liver; else the label volume `liver` of an
@@ -46,6 +47,8 @@ struct StructureInput {
 };
 
 //! Reads the image and obtains its liver, timing both and reporting the mask's source.
+//! \throw core::InvalidInputError naming the file if the volume reads as MR (seg::detect_modality)
+//! and `source.force_ct` is off: the vessel and tumour finders' defaults are contrast CT in HU.
 StructureInput read_structure_input(const std::filesystem::path& image, const std::string& image_name,
                                     const LiverSource& source, const tools::Progress& progress, tools::Timings& timings);
 
