@@ -44,86 +44,97 @@ struct Vol {
 };
 
 //! Keeps the largest 26-connected component of `m` (in place); returns the voxels removed.
+//! Labels runs of foreground along x, not voxels: a liver-sized mask has ~10^6 voxels but ~10^5
+//! runs, and a run touches a run of one of its four earlier neighbour rows (26-connectivity)
+//! when their x ranges overlap after widening by one. Ties go to the component met first in
+//! raster order.
 std::size_t keep_largest(Vol& m)
 {
-    std::vector<std::int32_t> label(m.v.size(), 0);
-    std::vector<std::size_t> sizes{0};
-    std::vector<std::size_t> queue;
-    for (std::size_t s = 0; s < m.v.size(); ++s) {
-        if (!m.v[s] || label[s])
-            continue;
-        const auto id = static_cast<std::int32_t>(sizes.size());
-        std::size_t size = 0;
-        queue.assign(1, s);
-        label[s] = id;
-        while (!queue.empty()) {
-            const std::size_t p = queue.back();
-            queue.pop_back();
-            ++size;
-            const int i = static_cast<int>(p % static_cast<std::size_t>(m.nx));
-            const int j = static_cast<int>((p / static_cast<std::size_t>(m.nx)) % static_cast<std::size_t>(m.ny));
-            const int k = static_cast<int>(p / m.plane());
-            for (int dk = -1; dk <= 1; ++dk)
-                for (int dj = -1; dj <= 1; ++dj)
-                    for (int di = -1; di <= 1; ++di) {
-                        const int a = i + di, b = j + dj, c = k + dk;
-                        if (a < 0 || b < 0 || c < 0 || a >= m.nx || b >= m.ny || c >= m.nz)
-                            continue;
-                        const std::size_t q = m.at(a, b, c);
-                        if (m.v[q] && !label[q]) {
-                            label[q] = id;
-                            queue.push_back(q);
-                        }
-                    }
+    struct Run {
+        int x0, x1; // [x0, x1]
+        std::size_t row;
+    };
+    const std::size_t rows = static_cast<std::size_t>(m.ny) * static_cast<std::size_t>(m.nz);
+    std::vector<Run> runs;
+    std::vector<std::size_t> first(rows + 1, 0); // runs of row r: [first[r], first[r + 1])
+    for (std::size_t r = 0; r < rows; ++r) {
+        first[r] = runs.size();
+        const std::uint8_t* line = m.v.data() + r * static_cast<std::size_t>(m.nx);
+        for (int i = 0; i < m.nx;) {
+            if (!line[i]) {
+                ++i;
+                continue;
+            }
+            const int x0 = i;
+            while (i < m.nx && line[i])
+                ++i;
+            runs.push_back({x0, i - 1, r});
         }
-        sizes.push_back(size);
     }
-    if (sizes.size() <= 2)
+    first[rows] = runs.size();
+    if (runs.empty())
         return 0;
-    const auto best = static_cast<std::int32_t>(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
-    std::size_t removed = 0;
-    for (std::size_t s = 0; s < m.v.size(); ++s)
-        if (m.v[s] && label[s] != best) {
-            m.v[s] = 0;
-            ++removed;
-        }
-    return removed;
-}
 
-//! Background voxels not 6-connected to the crop's border: the 3-D holes.
-std::vector<std::uint8_t> holes_3d(const Vol& m)
-{
-    std::vector<std::uint8_t> outside(m.v.size(), 0);
-    std::vector<std::size_t> queue;
-    auto seed = [&](int i, int j, int k) {
-        const std::size_t p = m.at(i, j, k);
-        if (!m.v[p] && !outside[p]) {
-            outside[p] = 1;
-            queue.push_back(p);
+    std::vector<std::size_t> parent(runs.size());
+    for (std::size_t a = 0; a < parent.size(); ++a)
+        parent[a] = a;
+    auto find = [&](std::size_t a) {
+        while (parent[a] != a)
+            a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    auto unite = [&](std::size_t a, std::size_t b) {
+        a = find(a);
+        b = find(b);
+        if (a != b)
+            parent[std::max(a, b)] = std::min(a, b); // the root is the earliest run
+    };
+    // Union the runs of row r with those of an earlier row q (two pointers over sorted runs).
+    auto join_rows = [&](std::size_t r, std::size_t q) {
+        std::size_t a = first[r], b = first[q];
+        while (a < first[r + 1] && b < first[q + 1]) {
+            if (runs[a].x0 <= runs[b].x1 + 1 && runs[b].x0 <= runs[a].x1 + 1)
+                unite(a, b);
+            if (runs[a].x1 < runs[b].x1)
+                ++a;
+            else
+                ++b;
         }
     };
     for (int k = 0; k < m.nz; ++k)
-        for (int j = 0; j < m.ny; ++j)
-            for (int i = 0; i < m.nx; ++i)
-                if (i == 0 || j == 0 || k == 0 || i == m.nx - 1 || j == m.ny - 1 || k == m.nz - 1)
-                    seed(i, j, k);
-    while (!queue.empty()) {
-        const std::size_t p = queue.back();
-        queue.pop_back();
-        const int i = static_cast<int>(p % static_cast<std::size_t>(m.nx));
-        const int j = static_cast<int>((p / static_cast<std::size_t>(m.nx)) % static_cast<std::size_t>(m.ny));
-        const int k = static_cast<int>(p / m.plane());
-        if (i > 0) seed(i - 1, j, k);
-        if (i < m.nx - 1) seed(i + 1, j, k);
-        if (j > 0) seed(i, j - 1, k);
-        if (j < m.ny - 1) seed(i, j + 1, k);
-        if (k > 0) seed(i, j, k - 1);
-        if (k < m.nz - 1) seed(i, j, k + 1);
+        for (int j = 0; j < m.ny; ++j) {
+            const std::size_t r = static_cast<std::size_t>(j) + static_cast<std::size_t>(m.ny) * static_cast<std::size_t>(k);
+            if (first[r] == first[r + 1])
+                continue;
+            if (j > 0)
+                join_rows(r, r - 1);
+            if (k > 0)
+                for (int dj = -1; dj <= 1; ++dj)
+                    if (j + dj >= 0 && j + dj < m.ny)
+                        join_rows(r, r - static_cast<std::size_t>(m.ny) + static_cast<std::size_t>(static_cast<std::ptrdiff_t>(dj)));
+        }
+    std::vector<std::size_t> size(runs.size(), 0);
+    std::size_t components = 0;
+    for (std::size_t a = 0; a < runs.size(); ++a) {
+        const std::size_t root = find(a);
+        components += root == a;
+        size[root] += static_cast<std::size_t>(runs[a].x1 - runs[a].x0 + 1);
     }
-    std::vector<std::uint8_t> holes(m.v.size(), 0);
-    for (std::size_t p = 0; p < m.v.size(); ++p)
-        holes[p] = (!m.v[p] && !outside[p]) ? 1 : 0;
-    return holes;
+    if (components <= 1)
+        return 0;
+    // Roots are each component's earliest run, so scanning roots in order breaks ties in raster order.
+    std::size_t best = 0;
+    for (std::size_t a = 1; a < runs.size(); ++a)
+        if (parent[a] == a && size[a] > size[best])
+            best = a;
+    std::size_t removed = 0;
+    for (std::size_t a = 0; a < runs.size(); ++a)
+        if (find(a) != best) {
+            std::uint8_t* line = m.v.data() + runs[a].row * static_cast<std::size_t>(m.nx);
+            std::fill(line + runs[a].x0, line + runs[a].x1 + 1, std::uint8_t{0});
+            removed += static_cast<std::size_t>(runs[a].x1 - runs[a].x0 + 1);
+        }
+    return removed;
 }
 
 //! `bin` (0/255, CV_8U) with its holes filled: background not 4-connected to the border.
@@ -254,19 +265,16 @@ PostprocessResult postprocess_liver_full(const core::LabelImage3D& stacked, cons
     if (params.keep_largest_component)
         r.removed_components = keep_largest(m);
 
-    // Holes of the input, per slice (they contain the 3-D holes: a 4-connected in-plane path
-    // to the outside is a 6-connected 3-D one). Sliver07 fills them; Parenchyma restores them.
+    // Holes of the input, per slice. They contain the 3-D holes (background not 6-connected to
+    // the box's border): a 4-connected in-plane path to the slice's border is a 6-connected 3-D
+    // path to the box's, so a 3-D flood would add nothing. Sliver07 fills them; Parenchyma
+    // restores them.
     Vol holes = m;
     for (int k = 0; k < m.nz; ++k) {
         cv::Mat s = slice_mat(m, k), h = slice_mat(holes, k);
         const cv::Mat filled = fill_holes_2d(s * 255);
         h = (filled & ~(s * 255)) / 255;
         h.copyTo(slice_mat(holes, k));
-    }
-    {
-        const std::vector<std::uint8_t> h3 = holes_3d(m);
-        for (std::size_t p = 0; p < h3.size(); ++p)
-            holes.v[p] = static_cast<std::uint8_t>(holes.v[p] | h3[p]);
     }
     Vol filled = m;
     if (!sliver || params.fill_holes)
