@@ -11,7 +11,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -400,20 +399,11 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     const double first_area = first.report.area_mm2;
 
     std::vector<SliceOutcome> up, down;
-    // Each direction runs on its own core with one OpenMP thread; when one ends (they are rarely
-    // balanced: 57 slices up and 86 down on a 200-slice phantom), the other takes both cores.
-    const int outer = omp_get_max_threads();
-    std::atomic<bool> up_done{false}, down_done{false};
-    auto run = [&](int step, std::vector<SliceOutcome>& out, const std::atomic<bool>* other_done) {
+    auto run = [&](int step, std::vector<SliceOutcome>& out) {
         const core::LabelImage3D* prev = &first.mask;
         double largest = first_area;
         const int end = c.top_slice >= 0 ? std::min(hu.size[2], c.top_slice) : hu.size[2];
-        bool widened = false;
         for (int k = seed_slice + step; k >= 0 && k < end; k += step) {
-            if (other_done && !widened && other_done->load()) {
-                omp_set_num_threads(outer);
-                widened = true;
-            }
             SliceOutcome s = segment_slice(c, k, *prev, prev, largest);
             if (s.mask.data.empty())
                 break;
@@ -427,23 +417,23 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     };
     if (params.parallel_directions) {
         // One direction per core; each snake then runs its OpenMP loops on one thread, since
-        // two teams of two spinning threads on two cores make both slower.
+        // two teams of two spinning threads on two cores make both slower. (Handing the idle
+        // core to the direction still running was tried: a 512^2 slice's snake gains nothing
+        // from a second thread, docs/benchmarks.md.)
+        const int outer = omp_get_max_threads();
         omp_set_num_threads(1);
         std::exception_ptr failed;
         std::thread t([&] {
             omp_set_num_threads(1);
             try {
-                run(+1, up, &down_done);
+                run(+1, up);
             } catch (...) {
                 failed = std::current_exception();
             }
-            up_done = true;
         });
         try {
-            run(-1, down, &up_done);
-            down_done = true;
+            run(-1, down);
         } catch (...) {
-            down_done = true;
             t.join();
             omp_set_num_threads(outer);
             throw;
@@ -453,8 +443,8 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         if (failed)
             std::rethrow_exception(failed);
     } else {
-        run(+1, up, nullptr);
-        run(-1, down, nullptr);
+        run(+1, up);
+        run(-1, down);
     }
 
     const std::size_t plane = static_cast<std::size_t>(hu.size[0]) * static_cast<std::size_t>(hu.size[1]);
