@@ -226,6 +226,8 @@ struct Context {
     const ShapeMemory* memory = nullptr;  //!< null: the fixed growth envelope
     int top_slice = -1;                   //!< slices >= this hold no liver (the heart/lung start slice); -1 = none
     Tissue tissue;                        //!< the liver's grey level (seed slice)
+    bool heart_known = false;             //!< the start slice found the heart at heart_i, heart_j
+    double heart_i = 0, heart_j = 0;      //!< (continuous voxel index, in-plane)
 };
 
 //! The slice k as the snake sees it: outside the rib cage replaced by fat, so that a contour
@@ -266,9 +268,87 @@ double area_of(const core::LabelImage3D& m)
     return double(count(m)) * pixel_area_mm2(m.geometry());
 }
 
+//! Slice k of the volume, box-smoothed in-plane with half-width r pixels, as a CV_32F matrix.
+cv::Mat smoothed_slice(const core::ImageF& v, int k, int r)
+{
+    core::ImageF s = core::axial_slice(v, k);
+    cv::Mat m(s.size[1], s.size[0], CV_32F, s.data.data()), out;
+    cv::blur(m, out, cv::Size(2 * r + 1, 2 * r + 1), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+    return out;
+}
+
+//! The dome contact above the liver mask `below` of slice k (docs/algorithms/liver.md): the
+//! columns of `below` where slice k + 1 is a z-valley, min(v[k], v[k+2]) - v[k+1] deeper than
+//! both contact_min_dip and contact_sigmas robust sd of that depth over `below`, closed with a
+//! disc of contact_closing_mm. All zero when none.
+core::LabelImage3D dome_contact(const Context& c, int k, const core::LabelImage3D& below)
+{
+    const LiverParams& p = c.p;
+    core::LabelImage3D out(below.geometry(), 0);
+    if (k + 2 >= c.hu.size[2] || count(below) == 0)
+        return out;
+    const double h = std::max(c.hu.spacing[0], c.hu.spacing[1]);
+    const int r = std::max(1, static_cast<int>(std::lround(p.contact_smoothing_mm / h)));
+    const cv::Mat s0 = smoothed_slice(c.hu, k, r), s1 = smoothed_slice(c.hu, k + 1, r),
+                  s2 = smoothed_slice(c.hu, k + 2, r);
+    cv::Mat depth;
+    cv::subtract(cv::min(s0, s2), s1, depth);
+    const auto* d = depth.ptr<float>(0);
+    std::vector<float> in;
+    for (std::size_t i = 0; i < below.data.size(); ++i)
+        if (below.data[i])
+            in.push_back(d[i]);
+    const double med = detail::quantile(in, 0.5);
+    for (float& x : in)
+        x = std::abs(x - static_cast<float>(med));
+    const double sd = 1.4826 * detail::quantile(std::move(in), 0.5);
+    const double threshold = std::max(p.contact_min_dip, med + p.contact_sigmas * sd);
+    cv::Mat valley(depth.rows, depth.cols, CV_8U, cv::Scalar(0));
+    for (int i = 0; i < depth.rows * depth.cols; ++i)
+        valley.data[i] = (below.data[static_cast<std::size_t>(i)] && double(d[i]) > threshold) ? 255 : 0;
+    const int rc = std::max(1, static_cast<int>(std::lround(p.contact_closing_mm / h)));
+    cv::morphologyEx(valley, valley, cv::MORPH_CLOSE,
+                     cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rc + 1, 2 * rc + 1)));
+    for (int i = 0; i < depth.rows * depth.cols; ++i)
+        out.data[static_cast<std::size_t>(i)] = valley.data[i] ? 1 : 0;
+    return out;
+}
+
+//! The pieces of the contact sheet `found` (the union of every dome contact found so far) of at
+//! least contact_min_area_mm2: the heart's round base meets the dome along rings that widen
+//! slice by slice, each too thin to tell from noise alone, and together one sheet.
+core::LabelImage3D contact_sheet(const Context& c, core::LabelImage3D found)
+{
+    cv::Mat bin(found.size[1], found.size[0], CV_8U, found.data.data());
+    cv::Mat labels, stats, centroids;
+    const int n = cv::connectedComponentsWithStats(bin, labels, stats, centroids, 8, CV_32S);
+    const double px = pixel_area_mm2(found.geometry());
+    // Each piece large enough and under the heart stands for the heart's footprint: its convex
+    // hull, since the rings are often open where a vessel crosses them.
+    cv::Mat sheet(bin.rows, bin.cols, CV_8U, cv::Scalar(0));
+    for (int l = 1; l < n; ++l) {
+        if (stats.at<int>(l, cv::CC_STAT_AREA) * px < c.p.contact_min_area_mm2)
+            continue;
+        const double dx = (centroids.at<double>(l, 0) - c.heart_i) * found.spacing[0];
+        const double dy = (centroids.at<double>(l, 1) - c.heart_j) * found.spacing[1];
+        if (std::hypot(dx, dy) > c.p.contact_heart_radius_mm)
+            continue;
+        std::vector<cv::Point> pts;
+        for (int y = 0; y < bin.rows; ++y)
+            for (int x = 0; x < bin.cols; ++x)
+                if (labels.at<std::int32_t>(y, x) == l)
+                    pts.emplace_back(x, y);
+        std::vector<cv::Point> hull;
+        cv::convexHull(pts, hull);
+        cv::fillConvexPoly(sheet, hull, cv::Scalar(1));
+    }
+    std::copy(sheet.data, sheet.data + found.data.size(), found.data.begin());
+    return found;
+}
+
 //! Segments slice k from the previous slice's accepted mask, or from the seed (previous null).
 SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& start, const core::LabelImage3D* previous,
-                           double largest_area_mm2)
+                           double largest_area_mm2, const core::LabelImage3D* above_contact = nullptr)
 {
     const LiverParams& p = c.p;
     const auto t0 = Clock::now();
@@ -318,6 +398,24 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             for (std::size_t i = 0; i < img.data.size(); ++i)
                 if (excluded.data[i])
                     img.data[i] = static_cast<float>(p.rib_background_hu);
+        }
+    }
+
+    if (above_contact && count(*above_contact) > 0) {
+        // Columns above a dome contact are not liver: to the snake they look like fat, as an
+        // excluded organ does, and the start contour leaves them out.
+        if (excluded.data.empty())
+            excluded = core::LabelImage3D(g, 0);
+        for (std::size_t i = 0; i < img.data.size(); ++i)
+            if (above_contact->data[i]) {
+                excluded.data[i] = 1;
+                init.data[i] = 0;
+                img.data[i] = static_cast<float>(p.rib_background_hu);
+            }
+        out.report.above_contact_mm2 = area_of(*above_contact);
+        if (count(init) == 0) {
+            out.stop = true;
+            return out;
         }
     }
 
@@ -379,9 +477,17 @@ void report(const Context& c, const LiverSliceReport& r)
     std::ostringstream s;
     s.precision(3);
     s << "slice " << r.slice << ": " << r.area_mm2 / 100.0 << " cm2, " << r.iterations << " iterations"
-      << (r.converged ? "" : r.leak_stopped ? " (leak stop)" : " (bound)") << (r.competition_used ? ", competition" : "")
-      << (r.rejected ? (r.recovered ? ", clipped by the shape memory (" : ", implausible even clipped (") + r.shape_reason + ")" : "") << ", "
-      << r.seconds << " s";
+      << (r.converged      ? ""
+          : r.leak_stopped ? " (leak stop)"
+                           : " (bound)")
+      << (r.competition_used ? ", competition" : "")
+      << (r.rejected ? (r.recovered ? ", clipped by the shape memory (" : ", implausible even clipped (") +
+                           r.shape_reason + ")"
+                     : "")
+      << (r.above_contact_mm2 > 0 ? ", " + std::to_string(static_cast<int>(std::lround(r.above_contact_mm2 / 100))) +
+                                        " cm2 above a dome contact"
+                                  : "")
+      << ", " << r.seconds << " s";
     c.progress(s.str());
 }
 
@@ -403,8 +509,13 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         const core::LabelImage3D* prev = &first.mask;
         double largest = first_area;
         const int end = c.top_slice >= 0 ? std::min(hu.size[2], c.top_slice) : hu.size[2];
+        // Upward only: the columns closed by a dome contact found on slice j + 1 (applied from j + 2).
+        const bool contacts = step > 0 && params.use_dome_contact && c.heart_known;
+        core::LabelImage3D found, closed, pending;
+        if (contacts)
+            pending = dome_contact(c, seed_slice, first.mask);
         for (int k = seed_slice + step; k >= 0 && k < end; k += step) {
-            SliceOutcome s = segment_slice(c, k, *prev, prev, largest);
+            SliceOutcome s = segment_slice(c, k, *prev, prev, largest, closed.data.empty() ? nullptr : &closed);
             if (s.mask.data.empty())
                 break;
             out.push_back(std::move(s));
@@ -413,6 +524,17 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
             largest = std::max(largest, out.back().report.area_mm2);
             if (out.back().stop)
                 break;
+            if (contacts) {
+                if (count(pending) > 0) {
+                    if (found.data.empty())
+                        found = pending;
+                    else
+                        for (std::size_t i = 0; i < found.data.size(); ++i)
+                            found.data[i] = found.data[i] || pending.data[i];
+                    closed = contact_sheet(c, found);
+                }
+                pending = dome_contact(c, k, out.back().mask);
+            }
         }
     };
     if (params.parallel_directions) {
@@ -653,6 +775,11 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     // the propagation upward ends below it.
     if (start.found && start.slice > seed.slice)
         c.top_slice = start.slice;
+    if (start.found) {
+        c.heart_known = true;
+        c.heart_i = start.heart_centre[0];
+        c.heart_j = start.heart_centre[1];
+    }
     // The liver's grey level and spread on the smoothed image the layers are cut from, under
     // the seed (this patient, this scan).
     const core::ImageF seed_img = core::axial_slice(work, seed.slice);

@@ -36,6 +36,7 @@ struct Case {
     core::ImageF hu;
     core::LabelImage3D truth;
     phantom::PhantomTruth info;
+    core::LabelImage3D labels;
 };
 
 Case phantom_case(std::array<double, 3> spacing, std::uint64_t seed)
@@ -45,7 +46,7 @@ Case phantom_case(std::array<double, 3> spacing, std::uint64_t seed)
     pp.size = phantom::size_for_spacing(spacing);
     pp.seed = seed;
     auto ph = phantom::generate_phantom(pp);
-    return {core::convert_image<float>(ph.ct), liver_truth(ph.labels), ph.truth};
+    return {core::convert_image<float>(ph.ct), liver_truth(ph.labels), ph.truth, ph.labels};
 }
 
 double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth_slice)
@@ -62,7 +63,8 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 } // namespace
 
 // 1.4 x 1.4 x 5 mm, noise seed 3: coarse slices make the heart and kidney contacts blurrier.
-// Measured: Dice 0.82, ASD 6.6 mm (the heart above the dome and the kidney under it leak in).
+// Measured: Dice 0.848, ASD 5.3 mm, RVD +28.5 % (the kidney under the liver leaks in; the heart
+// above the dome did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
 TEST(LiverPipeline, CoarsePhantomIsFound)
 {
     const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
@@ -73,29 +75,31 @@ TEST(LiverPipeline, CoarsePhantomIsFound)
     EXPECT_TRUE(r.start.found) << r.start.message;
     const auto m = seg::evaluate_segmentation(r.mask, c.truth);
     std::cerr << "coarse phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd << " %\n";
-    EXPECT_GE(m.dice, 0.78);
-    EXPECT_LE(m.surface.average, 8.0);
+    EXPECT_GE(m.dice, 0.82);
+    EXPECT_LE(m.surface.average, 6.5);
     EXPECT_LE(std::abs(m.rvd), 50.0);
     // The propagation stops below the start slice (the heart/lung slice).
     EXPECT_LT(r.last_slice, r.start.slice);
 }
 
-// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.875, ASD 4.9 mm.
+// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.908, ASD 3.9 mm (0.875 and 4.9 mm before the
+// dome contact).
 TEST(LiverPipeline, FinePhantomIsFound)
 {
     const Case c = phantom_case({0.9, 0.9, 3.0}, 5);
     const seg::LiverResult r = seg::segment_liver(c.hu);
     const auto m = seg::evaluate_segmentation(r.mask, c.truth);
     std::cerr << "fine phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd << " %\n";
-    EXPECT_GE(m.dice, 0.84);
-    EXPECT_LE(m.surface.average, 6.5);
+    EXPECT_GE(m.dice, 0.88);
+    EXPECT_LE(m.surface.average, 5.0);
     // Every slice of the propagation is reported once, in ascending order.
     for (std::size_t i = 1; i < r.slices.size(); ++i)
         EXPECT_EQ(r.slices[i].slice, r.slices[i - 1].slice + 1);
 }
 
 // The propagation alone, from the true liver of the centroid slice shrunk by 10 mm: what the
-// slice-by-slice driver achieves when the seed is right. Measured: Dice 0.81 (no rib cage, no
+// slice-by-slice driver achieves when the seed is right (no heart is known, so no dome contact
+// is sought). Measured: Dice 0.81 (no rib cage, no
 // start slice: the heart and kidney leaks are larger than in the whole pipeline).
 TEST(LiverPipeline, PropagationFromAKnownSeed)
 {
@@ -115,6 +119,43 @@ TEST(LiverPipeline, PropagationFromAKnownSeed)
     EXPECT_GE(m.dice, 0.76);
     EXPECT_LE(r.first_slice, k0);
     EXPECT_GE(r.last_slice, k0);
+}
+
+// The dome contact (docs/algorithms/liver.md, "The dome contact") on a phantom that neither it
+// nor the pipeline was tuned on (1.0 x 1.0 x 2.5 mm, noise seed 11). Without it the propagation
+// takes the heart wall over the dome; with it the columns above the diaphragm's z-valley are
+// closed. Measured: 45 725 heart voxels (wall and blood) in the mask without, 7 197 with (-84 %);
+// Dice 0.885 -> 0.914. The bounds ask for half of each gain.
+TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
+{
+    const Case c = phantom_case({1.0, 1.0, 2.5}, 11);
+    seg::LiverParams off;
+    off.use_dome_contact = false;
+    const seg::LiverResult with = seg::segment_liver(c.hu);
+    const seg::LiverResult without = seg::segment_liver(c.hu, off);
+    auto heart = [&](const core::LabelImage3D& m) {
+        std::size_t n = 0;
+        for (std::size_t i = 0; i < m.data.size(); ++i)
+            n += m.data[i] && (c.labels.data[i] == phantom::kHeart || c.labels.data[i] == phantom::kHeartBlood);
+        return n;
+    };
+    const double d_on = seg::evaluate_segmentation(with.mask, c.truth).dice;
+    const double d_off = seg::evaluate_segmentation(without.mask, c.truth).dice;
+    std::cerr << "dome contact: heart voxels " << heart(without.mask) << " -> " << heart(with.mask) << ", Dice "
+              << d_off << " -> " << d_on << "\n";
+    // Contacts are closed only going up, above the seed.
+    int closed = 0;
+    for (const auto& s : with.slices) {
+        if (s.above_contact_mm2 > 0) {
+            ++closed;
+            EXPECT_GT(s.slice, with.seed_slice + 1) << s.slice;
+        }
+    }
+    EXPECT_GT(closed, 0);
+    for (const auto& s : without.slices)
+        EXPECT_EQ(s.above_contact_mm2, 0.0);
+    EXPECT_LT(double(heart(with.mask)), 0.58 * double(heart(without.mask)));
+    EXPECT_GE(d_on, d_off + 0.014);
 }
 
 // Volumes it cannot handle get a clear error, never a garbage mask.

@@ -26,8 +26,8 @@ struct LiverOptions {
     std::string image_name = "ct";
     std::string convention = "sliver07";
     std::string modality = "auto";
-    bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false, no_shape_memory = false, no_3d_pass = false,
-         layer_stop = false;
+    bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
+         no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false;
     seg::LiverParams params;
 };
 
@@ -90,6 +90,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_rib_cage = !o.no_rib_cage;
     p.use_shape_memory = !o.no_shape_memory;
     p.use_3d_pass = !o.no_3d_pass;
+    p.use_dome_contact = !o.no_dome_contact;
     p.layer_holds_pressure = o.layer_stop;
     if (o.no_competition)
         p.snake.competition = seg::CompetitionMode::Off;
@@ -113,8 +114,9 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     } catch (const core::InvalidInputError& e) {
         throw core::InvalidInputError(o.image.string() + ": " + e.what());
     }
-    int rejected = 0, recovered = 0, bounded = 0;
+    int rejected = 0, recovered = 0, bounded = 0, above_contact = 0;
     for (const auto& s : r.slices) {
+        above_contact += s.above_contact_mm2 > 0;
         rejected += s.rejected;
         recovered += s.recovered;
         bounded += !s.converged && !s.leak_stopped;
@@ -143,13 +145,14 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_rejected", std::to_string(rejected));
         param("result.slices_recovered", std::to_string(recovered));
         param("result.slices_iteration_bound", std::to_string(bounded));
+        param("result.slices_above_contact", std::to_string(above_contact));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
-        param("components", std::string(p.use_start_slice && ct ? "start-slice " : "") +
-                                (ct ? "" : "mr-contrast-map ") + (p.use_kmeans ? "kmeans " : "") +
-                                (p.use_rib_cage && ct ? "rib-cage " : "") +
-                                (memory && p.use_shape_memory ? "shape-memory " : "") +
-                                (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
-                                (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
+        param("components",
+              std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
+                  (p.use_kmeans ? "kmeans " : "") + (p.use_rib_cage && ct ? "rib-cage " : "") +
+                  (memory && p.use_shape_memory ? "shape-memory " : "") + (p.use_dome_contact ? "dome-contact " : "") +
+                  (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
+                  (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", source);
         h5.write_labels("liver", r.mask, {{1, "liver"}});
@@ -204,6 +207,9 @@ Command add_liver(CLI::App& lseg)
     cmd->add_flag("--no-rib-cage", o->no_rib_cage, "Ablation: no rib cage ring");
     cmd->add_flag("--no-shape-memory", o->no_shape_memory, "Ablation: ignore --shape");
     cmd->add_flag("--no-3d-pass", o->no_3d_pass, "Ablation: keep the slice-by-slice stack");
+    cmd->add_flag(
+        "--no-dome-contact", o->no_dome_contact,
+        "Ablation: going up, do not close the columns above a dome contact (the flat diaphragm under the heart)");
     cmd->add_flag("--layer-stop", o->layer_stop,
                   "Experiment: the snake's pressure acts only inside the liver-like layer on propagated slices");
     cmd->add_option("--max-iterations", o->params.propagation_max_iterations,

@@ -35,6 +35,7 @@ struct LiverSliceReport {
     bool recovered = false;     //!< ... and its clip to the memory's envelope was accepted
     double shape_score = 0;     //!< the memory's score (<= 1 plausible; 0 without a memory)
     std::string shape_reason;   //!< why the memory rejected it
+    double above_contact_mm2 = 0; //!< area kept out as lying above a dome contact found below
     double seconds = 0;
 };
 
@@ -111,6 +112,20 @@ struct LiverParams {
                                     //!< inside the liver-like layer; off: it lost 19 points on a
                                     //!< phantom by following the kidney (docs/algorithms/liver.md)
     bool parallel_directions = true; //!< propagate up and down on two threads
+    //! The dome contact (docs/algorithms/liver.md, "The dome contact"): going up, a column of the
+    //! liver whose next slice is a thin z-valley (the diaphragm and pericardium between the dome
+    //! and the heart, too flat to be an edge in an axial slice) is closed to the liver above it.
+    bool use_dome_contact = true;
+    double contact_smoothing_mm = 1.5;     //!< in-plane box half-width before the valley test
+    double contact_sigmas = 3.0;           //!< a valley is deeper than this many robust sd of the valley
+                                           //!< depth over the liver's columns ...
+    double contact_min_dip = 5.0;          //!< ... and than this [image units, HU]
+    double contact_closing_mm = 2.0;       //!< the valley pixels are closed into a sheet with this radius
+    double contact_min_area_mm2 = 300.0;   //!< smaller sheets are ignored (noise, a small lesion)
+    double contact_heart_radius_mm = 70.0; //!< a sheet counts only if its centroid lies within this
+                                           //!< in-plane distance of the heart centre found on the start
+                                           //!< slice: the contact is the heart's base, and without a start
+                                           //!< slice (or in propagate_liver) no contact is sought
 
     // The pipeline's components (segment_liver); each can be switched off for the ablation.
     bool use_start_slice = true;    //!< rotating template: the heart/lung slice bounds the seed search
