@@ -690,6 +690,17 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     if (hu.size[2] < params.min_slices)
         throw core::InvalidInputError("segment_liver: the volume has " + std::to_string(hu.size[2]) +
                                       " slices; the liver pipeline needs at least " + std::to_string(params.min_slices));
+    if (params.use_dome_contact)
+        for (const auto& [name, v] :
+             {std::pair<const char*, double>{"contact_smoothing_mm", params.contact_smoothing_mm},
+              {"contact_sigmas", params.contact_sigmas},
+              {"contact_min_dip", params.contact_min_dip},
+              {"contact_closing_mm", params.contact_closing_mm},
+              {"contact_min_area_mm2", params.contact_min_area_mm2},
+              {"contact_heart_radius_mm", params.contact_heart_radius_mm}})
+            if (!std::isfinite(v) || v < 0)
+                throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
+                                              std::to_string(v));
     const auto t0 = Clock::now();
     auto say = [&](const std::string& s) {
         if (progress)

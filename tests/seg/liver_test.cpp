@@ -188,6 +188,18 @@ TEST(LiverPipeline, RefusesWhatItCannotSegment)
     core::ImageF nan(g, 0.f);
     nan.data[5] = std::numeric_limits<float>::quiet_NaN();
     EXPECT_THROW(seg::segment_liver(nan), core::InvalidInputError);
+    // A dome-contact parameter that is negative or not finite is named, before any work.
+    seg::LiverParams bad;
+    bad.contact_sigmas = std::numeric_limits<double>::quiet_NaN();
+    try {
+        seg::segment_liver(core::ImageF(g, 0.f), bad);
+        FAIL() << "a NaN contact_sigmas should be refused";
+    } catch (const core::InvalidInputError& e) {
+        EXPECT_NE(std::string(e.what()).find("contact_sigmas"), std::string::npos) << e.what();
+    }
+    bad = {};
+    bad.contact_min_area_mm2 = -1;
+    EXPECT_THROW(seg::segment_liver(core::ImageF(g, 0.f), bad), core::InvalidInputError);
 }
 
 // Only the slices below the liver (pelvis-like: bowel, kidneys' lower poles): no liver.
