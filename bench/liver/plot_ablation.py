@@ -13,7 +13,8 @@ rows = [r for r in csv.DictReader(open(sys.argv[1])) if r["status"] == "ok"]
 inputs = sorted({r["input"] for r in rows}, key=lambda s: [r["input"] for r in rows].index(s))
 variants = sorted({r["variant"] for r in rows}, key=lambda s: [r["variant"] for r in rows].index(s))
 markers = "os^vD<>Px*"
-colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+# The default cycle's grey (its 8th colour) would read as the inputs' legend markers, drawn grey.
+colours = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"] if c != "#7f7f7f"] + ["#000080"]
 fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
 for ax, key, label in ((axes[0], "score", "SLIVER07 score (0-100; human 75)"), (axes[1], "dice", "Dice")):
     for vi, v in enumerate(variants):
@@ -29,7 +30,7 @@ for ax, key, label in ((axes[0], "score", "SLIVER07 score (0-100; human 75)"), (
     ax.grid(True, alpha=0.3)
 handles = [plt.Line2D([], [], linestyle="", marker="o", color=colours[i % len(colours)], label=v)
            for i, v in enumerate(variants)]
-handles += [plt.Line2D([], [], linestyle="", marker=markers[i % len(markers)], color="grey", label=n)
+handles += [plt.Line2D([], [], linestyle="", marker=markers[i % len(markers)], color="#7f7f7f", label=n)
             for i, n in enumerate(inputs)]
 axes[1].legend(handles=handles, fontsize=8, loc="lower right")
 fig.suptitle("lseg liver: each component switched off in turn (bench/liver/run.sh)")
