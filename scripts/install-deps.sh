@@ -2,7 +2,8 @@
 # Installs the Debian packages lobe needs to build, test and run its demo.
 # Idempotent: when every package is already installed it does nothing (no apt-get update).
 # With --bench it also installs what the benchmarks need: tetgen (the meshing peer), ITK (the outside peer the segmentation
-# benchmarks compare against; never a library dependency) and matplotlib for the charts.
+# benchmarks compare against; never a library dependency), matplotlib for the charts and scipy for
+# bench/liver/surface_bias.py.
 set -euo pipefail
 
 packages=(
@@ -16,7 +17,7 @@ packages=(
 )
 
 if [ "${1:-}" = "--bench" ]; then
-  packages+=(libinsighttoolkit5-dev python3-matplotlib python3-numpy python3-pil tetgen)
+  packages+=(libinsighttoolkit5-dev python3-matplotlib python3-numpy python3-pil python3-scipy tetgen)
 fi
 
 missing=()
