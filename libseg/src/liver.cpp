@@ -298,10 +298,7 @@ core::LabelImage3D dome_contact(const Context& c, int k, const core::LabelImage3
     for (std::size_t i = 0; i < below.data.size(); ++i)
         if (below.data[i])
             in.push_back(d[i]);
-    const double med = detail::quantile(in, 0.5);
-    for (float& x : in)
-        x = std::abs(x - static_cast<float>(med));
-    const double sd = 1.4826 * detail::quantile(std::move(in), 0.5);
+    const auto [med, sd] = detail::median_and_robust_sd(std::move(in));
     const double threshold = std::max(p.contact_min_dip, med + p.contact_sigmas * sd);
     cv::Mat valley(depth.rows, depth.cols, CV_8U, cv::Scalar(0));
     for (int i = 0; i < depth.rows * depth.cols; ++i)
@@ -334,10 +331,7 @@ core::LabelImage3D contact_sheet(const Context& c, core::LabelImage3D found)
         if (std::hypot(dx, dy) > c.p.contact_heart_radius_mm)
             continue;
         std::vector<cv::Point> pts;
-        for (int y = 0; y < bin.rows; ++y)
-            for (int x = 0; x < bin.cols; ++x)
-                if (labels.at<std::int32_t>(y, x) == l)
-                    pts.emplace_back(x, y);
+        cv::findNonZero(labels == l, pts);
         std::vector<cv::Point> hull;
         cv::convexHull(pts, hull);
         cv::fillConvexPoly(sheet, hull, cv::Scalar(1));
@@ -391,32 +385,30 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         init = core::LabelImage3D(g, 0);
         paste(init_w, ww, init);
         if (p.exclude_dropped_pieces && count(dropped) > 0) {
-            // The snake must not flow back into the organ through its faint contact line: to
-            // it the organ looks like fat (a strong edge), and the contour is cut there.
             excluded = core::LabelImage3D(g, 0);
             paste(dropped, ww, excluded);
-            for (std::size_t i = 0; i < img.data.size(); ++i)
-                if (excluded.data[i])
-                    img.data[i] = static_cast<float>(p.rib_background_hu);
         }
     }
-
-    if (above_contact && count(*above_contact) > 0) {
-        // Columns above a dome contact are not liver: to the snake they look like fat, as an
-        // excluded organ does, and the start contour leaves them out.
+    const bool contact = above_contact && count(*above_contact) > 0;
+    if (contact) {
         if (excluded.data.empty())
             excluded = core::LabelImage3D(g, 0);
-        for (std::size_t i = 0; i < img.data.size(); ++i)
-            if (above_contact->data[i]) {
-                excluded.data[i] = 1;
-                init.data[i] = 0;
-                img.data[i] = static_cast<float>(p.rib_background_hu);
-            }
+        for (std::size_t i = 0; i < excluded.data.size(); ++i)
+            excluded.data[i] = excluded.data[i] || above_contact->data[i];
         out.report.above_contact_mm2 = area_of(*above_contact);
-        if (count(init) == 0) {
-            out.stop = true;
-            return out;
-        }
+    }
+    // The snake must not flow back into an excluded organ (or above a dome contact) through its
+    // faint contact line: to it the region looks like fat (a strong edge), and the contour is
+    // cut there; the start contour leaves it out.
+    if (!excluded.data.empty())
+        for (std::size_t i = 0; i < img.data.size(); ++i)
+            if (excluded.data[i]) {
+                img.data[i] = static_cast<float>(p.rib_background_hu);
+                init.data[i] = 0;
+            }
+    if (contact && count(init) == 0) {
+        out.stop = true;
+        return out;
     }
 
     // Only a window around the contour is modelled: the liver moves a few mm per slice, and

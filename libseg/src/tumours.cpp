@@ -163,10 +163,9 @@ TumourResult segment_tumours(const core::ImageF& image, const core::LabelImage3D
         for (std::size_t u = 0; u < S.data.size(); ++u)
             if (R.data[u])
                 vals.push_back(S.data[u]);
-        res.parenchyma = detail::quantile(vals, 0.5);
-        for (float& v : vals)
-            v = static_cast<float>(std::abs(static_cast<double>(v) - res.parenchyma));
-        res.parenchyma_sigma = std::max(1e-3, 1.4826 * detail::quantile(std::move(vals), 0.5));
+        const auto [median, sd] = detail::median_and_robust_sd(std::move(vals));
+        res.parenchyma = median;
+        res.parenchyma_sigma = std::max(1e-3, sd);
     }
     const double delta = std::max(params.min_contrast, params.contrast_sigmas * res.parenchyma_sigma);
     // The tumour layers: centres below the parenchyma by delta or more; the boundary is half way

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lobe::seg::detail {
@@ -182,6 +183,16 @@ inline double quantile(std::vector<float> v, double q)
     const auto n = static_cast<std::ptrdiff_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1));
     std::nth_element(v.begin(), v.begin() + n, v.end());
     return v[static_cast<std::size_t>(n)];
+}
+
+//! The median of `v` and its robust sd, 1.4826 times the median absolute deviation (the sd of a
+//! normal sample, unmoved by a minority of outliers). {0, 0} for an empty v.
+inline std::pair<double, double> median_and_robust_sd(std::vector<float> v)
+{
+    const double median = quantile(v, 0.5);
+    for (float& x : v)
+        x = static_cast<float>(std::abs(static_cast<double>(x) - median));
+    return {median, 1.4826 * quantile(std::move(v), 0.5)};
 }
 
 } // namespace lobe::seg::detail
