@@ -110,6 +110,11 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_EQ(r.exit_code, 1) << r.err; // a bad command line: no such modality
     EXPECT_NE(r.err.find("--modality"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "f.h5"));
+
+    r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "g.h5") + " --mr-noise 0", dir);
+    EXPECT_EQ(r.exit_code, 1) << r.err; // a bad command line: the map needs a positive scale
+    EXPECT_NE(r.err.find("--mr-noise"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "g.h5"));
 }
 
 // The real MR at hand (../shared/data/mr-small: T1, 117 x 91 x 20, 3 mm; its reference is
