@@ -364,6 +364,19 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             region = core::LabelImage3D(g, 0);
             paste(layer, ww, region);
         }
+        if (p.envelope_holds_pressure) {
+            // The outline may not move further than the envelope allows (the memory's, or the
+            // fixed growth bound): outside it the pressure is zero, so the front stops there
+            // instead of being clipped after the run.
+            const core::LabelImage3D env = c.memory && p.use_shape_memory
+                                               ? plausible_envelope(*c.memory, templ, c.hu.spacing[2], largest_area_mm2)
+                                               : grow(templ, p.max_growth_per_mm * c.hu.spacing[2]);
+            if (region.data.empty())
+                region = env;
+            else
+                for (std::size_t i = 0; i < region.data.size(); ++i)
+                    region.data[i] = region.data[i] && env.data[i];
+        }
         const core::LabelImage3D lines = cut_lines(img_w, p.snake.edge);
         const core::LabelImage3D shrunk = crop(shrink(templ, p.erosion_mm), ww);
         // The rim: the shrunk previous contour's outermost two pixels.
@@ -592,19 +605,6 @@ void check_image(const core::ImageF& hu, const char* who)
             throw core::InvalidInputError(std::string(who) + ": the image has non-finite values");
 }
 
-// The q-quantile of the volume's values, from a strided sample of at most about a million
-// voxels (a 512 x 512 x 200 CT would otherwise be copied whole).
-double sampled_quantile(const core::ImageF& v, double q)
-{
-    const std::size_t n = v.data.size();
-    const std::size_t stride = std::max<std::size_t>(1, n / (std::size_t(1) << 20));
-    std::vector<float> sample;
-    sample.reserve(n / stride + 1);
-    for (std::size_t i = 0; i < n; i += stride)
-        sample.push_back(v.data[i]);
-    return detail::quantile(std::move(sample), q);
-}
-
 } // namespace
 
 const char* modality_name(Modality modality)
@@ -732,11 +732,26 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     }
     lap("start slice", t);
 
+    // MR: the coil's shading is divided out first, so that one liver grey level holds across
+    // the volume for the seed and the contrast map.
+    BiasFieldResult bias;
+    if (mr && params.mr.bias_correction) {
+        t = Clock::now();
+        bias = correct_bias_field(hu, params.mr.bias);
+        lap("bias field", t);
+        std::ostringstream s;
+        s.precision(3);
+        s << "bias field: gain " << bias.min_gain << " to " << bias.max_gain << " over the tissue, " << bias.iterations
+          << " iterations" << (bias.converged ? "" : " (not converged)");
+        say(s.str());
+    }
+    const core::ImageF& grey = bias.corrected.data.empty() ? hu : bias.corrected;
+
     t = Clock::now();
     LiverSeedParams seed_params = params.seed;
     if (mr) {
         // The MR's own units: the body and the plausible liver grey levels from its histogram.
-        const double p99 = sampled_quantile(hu, 0.99);
+        const double p99 = detail::sampled_quantile(grey, 0.99);
         if (!(p99 > 0.0))
             throw LiverNotFoundError("no liver found: read as MR, the volume has no signal (99th percentile " +
                                      std::to_string(p99) + ")");
@@ -745,7 +760,7 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
         seed_params.liver_range_hi = params.mr.liver_hi_fraction * p99;
         seed_params.acceptance_sigma = params.mr.acceptance_sigma;
     }
-    const LiverSeedResult seed = seed_liver(hu, start, seed_params);
+    const LiverSeedResult seed = seed_liver(grey, start, seed_params);
     lap("seed", t);
     if (!seed.found)
         throw LiverNotFoundError("no liver found: " + seed.message);
@@ -756,7 +771,7 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     core::ImageF mapped;
     if (mr) {
         t = Clock::now();
-        mapped = mr_liver_contrast(hu, seed.liver_value, seed.liver_sigma, params.mr.noise_hu);
+        mapped = mr_liver_contrast(grey, seed.liver_value, seed.liver_sigma, params.mr.noise_hu);
         lap("MR contrast map", t);
     }
     const core::ImageF& work = mr ? mapped : hu;
@@ -794,6 +809,9 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     r.start = start;
     r.seed = seed;
     r.modality = modality;
+    r.bias_corrected = !bias.corrected.data.empty();
+    r.bias_min_gain = bias.min_gain;
+    r.bias_max_gain = bias.max_gain;
 
     if (params.use_3d_pass) {
         t = Clock::now();

@@ -262,8 +262,8 @@ namespace {
 // A T1-weighted-looking volume made from a CT phantom: a piecewise-linear map of HU in which fat
 // is brightest, the liver the brightest soft tissue, muscle, fluid, blood and bone darker, air and
 // lung black (relative grey levels as in mr-small: liver 97, wall muscle 20-60, fat 200-550), times
-// a smooth shading of +-15 % across the body (MR's intensity inhomogeneity).
-core::ImageF t1_like(const core::ImageF& hu)
+// a smooth shading of +-`shading` across the body, right to left (MR's intensity inhomogeneity).
+core::ImageF t1_like(const core::ImageF& hu, double shading = 0.15)
 {
     static const std::array<std::pair<float, float>, 8> knots = {{{-1000.f, 0.f},
                                                                   {-800.f, 10.f},
@@ -284,12 +284,39 @@ core::ImageF t1_like(const core::ImageF& hu)
         const auto [x1, y1] = knots[i];
         const float t1 = y0 + (y1 - y0) * (h - x0) / (x1 - x0);
         const double x = double(static_cast<int>(v % static_cast<std::size_t>(nx))) / (nx - 1); // 0 right .. 1 left
-        out.data[v] = static_cast<float>(double(t1) * (1.15 - 0.3 * x));
+        out.data[v] = static_cast<float>(double(t1) * (1.0 + shading - 2.0 * shading * x));
     }
     return out;
 }
 
 } // namespace
+
+// Strong shading (gain 1.45 on the right to 0.55 on the left, as a surface coil's falloff can
+// be) pushes the liver's far side out of the liver-like band: the MR path misses part of it.
+// Dividing the field out first (MrParams::bias_correction) brings the volume back. Measured on
+// this phantom (1.2 x 1.2 x 4 mm, seed 3; the bias-field work was done on 1.4 x 1.4 x 5 mm, seed
+// 7): without the correction RVD -17.6 %, Dice 0.815; with it RVD +4.7 %, Dice 0.833, gain
+// 0.59..1.39. Bounds: |RVD| under 8 % and Dice 0.82 with it, and the correction at least halving
+// |RVD|.
+TEST(LiverPipeline, BiasFieldCorrectionRecoversAShadedMr)
+{
+    const Case c = phantom_case({1.2, 1.2, 4.0}, 3);
+    const core::ImageF mr = t1_like(c.hu, 0.45);
+    seg::LiverParams p;
+    p.mr.bias_correction = false;
+    const auto plain = seg::evaluate_segmentation(seg::segment_liver(mr, p).mask, c.truth);
+    p.mr.bias_correction = true;
+    const seg::LiverResult r = seg::segment_liver(mr, p);
+    const auto corrected = seg::evaluate_segmentation(r.mask, c.truth);
+    std::cerr << "shaded T1-like phantom: RVD " << plain.rvd << " % -> " << corrected.rvd << " %, Dice " << plain.dice
+              << " -> " << corrected.dice << ", gain " << r.bias_min_gain << ".." << r.bias_max_gain << "\n";
+    EXPECT_TRUE(r.bias_corrected);
+    EXPECT_LT(r.bias_min_gain, 0.75); // the true field spans 0.55..1.45 (over the tissue, less)
+    EXPECT_GT(r.bias_max_gain, 1.25);
+    EXPECT_LE(std::abs(corrected.rvd), 8.0);
+    EXPECT_GE(corrected.dice, 0.82);
+    EXPECT_LE(std::abs(corrected.rvd), 0.5 * std::abs(plain.rvd));
+}
 
 // Auto's rule on what it will meet: a CT has air (below -500 HU) outside the body and in the
 // lungs; an MR magnitude image has no value there.

@@ -19,6 +19,7 @@ Command add_train(CLI::App& lseg); //!< lseg train --image --labels ... -o: the 
 Command add_liver(CLI::App& lseg); //!< lseg liver IMAGE -o OUT.h5: automatic liver segmentation
 Command add_vessels(CLI::App& lseg); //!< lseg vessels IMAGE -o OUT.h5: hepatic vessel trees
 Command add_tumours(CLI::App& lseg); //!< lseg tumours IMAGE -o OUT.h5: liver tumours
+Command add_bias(CLI::App& lseg);    //!< lseg bias IMAGE -o OUT.h5: MR shading corrected, and the field
 Command add_all(CLI::App& lseg);     //!< lseg all IMAGE -o OUT.h5: liver, vessels, tumours in one label volume
 
 } // namespace lobe::lseg

@@ -27,7 +27,8 @@ struct LiverOptions {
     std::string convention = "sliver07";
     std::string modality = "auto";
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
-         no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false;
+         no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
+         envelope_stop = false;
     seg::LiverParams params;
 };
 
@@ -92,6 +93,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_3d_pass = !o.no_3d_pass;
     p.use_dome_contact = !o.no_dome_contact;
     p.layer_holds_pressure = o.layer_stop;
+    p.envelope_holds_pressure = o.envelope_stop;
+    p.mr.bias_correction = o.bias_field;
     if (o.no_competition)
         p.snake.competition = seg::CompetitionMode::Off;
     p.post.convention = o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
@@ -146,13 +149,16 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_recovered", std::to_string(recovered));
         param("result.slices_iteration_bound", std::to_string(bounded));
         param("result.slices_above_contact", std::to_string(above_contact));
+        if (r.bias_corrected)
+            param("result.bias_field.gain", fixed(r.bias_min_gain, 3) + " to " + fixed(r.bias_max_gain, 3));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
-        param("components",
-              std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
-                  (p.use_kmeans ? "kmeans " : "") + (p.use_rib_cage && ct ? "rib-cage " : "") +
-                  (memory && p.use_shape_memory ? "shape-memory " : "") + (p.use_dome_contact ? "dome-contact " : "") +
-                  (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
-                  (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
+        param("components", std::string(p.use_start_slice && ct ? "start-slice " : "") +
+                                (ct ? "" : "mr-contrast-map ") + (r.bias_corrected ? "bias-field " : "") +
+                                (p.use_kmeans ? "kmeans " : "") + (p.use_rib_cage && ct ? "rib-cage " : "") +
+                                (memory && p.use_shape_memory ? "shape-memory " : "") +
+                                (p.use_dome_contact ? "dome-contact " : "") + (p.use_3d_pass ? "3d-pass " : "") +
+                                (p.layer_holds_pressure ? "layer-stop " : "") +
+                                (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", source);
         h5.write_labels("liver", r.mask, {{1, "liver"}});
@@ -201,6 +207,9 @@ Command add_liver(CLI::App& lseg)
                     "a few sd from the liver's grey level read darker; docs/algorithms/liver.md, \"MRI\")")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    cmd->add_flag("--bias-field", o->bias_field,
+                  "MR path: divide out the coil's shading before the seed, for a scan whose liver is visibly "
+                  "brighter on one side (docs/algorithms/bias_field.md)");
     cmd->add_flag("--no-start-slice", o->no_start_slice, "Ablation: no rotating-template start slice");
     cmd->add_flag("--no-competition", o->no_competition, "Ablation: no energy competition between slices");
     cmd->add_flag("--no-kmeans", o->no_kmeans, "Ablation: a fixed band around the seed's grey level, not K-means layers");
@@ -212,6 +221,8 @@ Command add_liver(CLI::App& lseg)
         "Ablation: going up, do not close the columns above a dome contact (the flat diaphragm under the heart)");
     cmd->add_flag("--layer-stop", o->layer_stop,
                   "Experiment: the snake's pressure acts only inside the liver-like layer on propagated slices");
+    cmd->add_flag("--envelope-stop", o->envelope_stop,
+                  "Experiment: the snake's pressure acts only inside the growth envelope on propagated slices");
     cmd->add_option("--max-iterations", o->params.propagation_max_iterations,
                     "Level-set iteration bound on a propagated slice")
         ->capture_default_str()

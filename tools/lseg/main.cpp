@@ -15,8 +15,9 @@ int main(int argc, char** argv)
     tools::add_common_options(app, quiet);
     app.require_subcommand(1);
     app.fallthrough(); // --quiet may follow the subcommand (subcommands inherit this)
-    const std::vector<lseg::Command> commands = {lseg::add_snake(app), lseg::add_eval(app), lseg::add_train(app), lseg::add_liver(app),
-                                                lseg::add_vessels(app), lseg::add_tumours(app), lseg::add_all(app)};
+    const std::vector<lseg::Command> commands = {lseg::add_snake(app), lseg::add_eval(app),    lseg::add_train(app),
+                                                 lseg::add_liver(app), lseg::add_vessels(app), lseg::add_tumours(app),
+                                                 lseg::add_all(app),   lseg::add_bias(app)};
 
     tools::RunRecord record(app, argc, argv);
     return tools::run_tool(app, argc, argv, [&] {
