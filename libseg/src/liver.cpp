@@ -226,6 +226,8 @@ struct Context {
     const ShapeMemory* memory = nullptr;  //!< null: the fixed growth envelope
     int top_slice = -1;                   //!< slices >= this hold no liver (the heart/lung start slice); -1 = none
     Tissue tissue;                        //!< the liver's grey level (seed slice)
+    Tissue band;                          //!< the grey levels under the seed slice's contour
+                                          //!< (median, robust sd): the tissue stop's band
     bool heart_known = false;             //!< the start slice found the heart at heart_i, heart_j
     double heart_i = 0, heart_j = 0;      //!< (continuous voxel index, in-plane)
 };
@@ -469,6 +471,27 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         for (std::size_t i = 0; i < out.mask.data.size(); ++i)
             out.mask.data[i] = out.mask.data[i] && !excluded.data[i];
     out.report.area_mm2 = area_of(out.mask);
+    if (previous && p.use_tissue_stop) {
+        // The liver's parenchyma is homogeneous: a contour mostly outside its grey levels has
+        // crossed into something else at the liver's end (bowel with gas and fat, a kidney).
+        const core::ImageF smooth_w = gaussian_smooth(crop(img, w), 1.0);
+        const core::LabelImage3D mask_w = crop(out.mask, w);
+        const double lo = c.band.mean - p.tissue_stop_sigmas * c.band.sigma;
+        const double hi = c.band.mean + p.tissue_stop_sigmas * c.band.sigma;
+        std::size_t in = 0, outside = 0;
+        for (std::size_t i = 0; i < mask_w.data.size(); ++i)
+            if (mask_w.data[i]) {
+                ++in;
+                const double v = smooth_w.data[i];
+                outside += v < lo || v > hi;
+            }
+        out.report.outside_fraction = in ? double(outside) / double(in) : 0.0;
+        if (out.report.outside_fraction > p.tissue_stop_fraction) {
+            out.report.not_liver = true;
+            out.stop = true;
+            std::fill(out.mask.data.begin(), out.mask.data.end(), std::uint8_t(0));
+        }
+    }
     out.report.seconds = seconds_since(t0);
     if (out.report.area_mm2 < p.min_area_mm2)
         out.stop = true;
@@ -492,6 +515,9 @@ void report(const Context& c, const LiverSliceReport& r)
       << (r.above_contact_mm2 > 0 ? ", " + std::to_string(static_cast<int>(std::lround(r.above_contact_mm2 / 100))) +
                                         " cm2 above a dome contact"
                                   : "")
+      << (r.not_liver ? ", " + std::to_string(static_cast<int>(std::lround(100 * r.outside_fraction))) +
+                            " % outside the liver's grey levels: not liver, the liver ends here"
+                      : "")
       << ", " << r.seconds << " s";
     c.progress(s.str());
 }
@@ -508,6 +534,18 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     SliceOutcome first = segment_slice(c, seed_slice, seed, nullptr, 0.0);
     report(c, first.report);
     const double first_area = first.report.area_mm2;
+    // The slices after the seed's read the liver's grey levels from its whole contour: the seed
+    // cells are few and homogeneous, and their sd is narrower than the liver's shading.
+    Context cx = c;
+    {
+        const core::ImageF smooth = gaussian_smooth(slice_image(c, seed_slice), 1.0);
+        std::vector<float> under;
+        for (std::size_t i = 0; i < first.mask.data.size(); ++i)
+            if (first.mask.data[i])
+                under.push_back(smooth.data[i]);
+        const auto [median, sd] = detail::median_and_robust_sd(std::move(under));
+        cx.band = {median, sd};
+    }
 
     std::vector<SliceOutcome> up, down;
     auto run = [&](int step, std::vector<SliceOutcome>& out) {
@@ -518,13 +556,13 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         const bool contacts = step > 0 && params.use_dome_contact && c.heart_known;
         core::LabelImage3D found, closed, pending;
         if (contacts)
-            pending = dome_contact(c, seed_slice, first.mask);
+            pending = dome_contact(cx, seed_slice, first.mask);
         for (int k = seed_slice + step; k >= 0 && k < end; k += step) {
-            SliceOutcome s = segment_slice(c, k, *prev, prev, largest, closed.data.empty() ? nullptr : &closed);
+            SliceOutcome s = segment_slice(cx, k, *prev, prev, largest, closed.data.empty() ? nullptr : &closed);
             if (s.mask.data.empty())
                 break;
             out.push_back(std::move(s));
-            report(c, out.back().report);
+            report(cx, out.back().report);
             prev = &out.back().mask;
             largest = std::max(largest, out.back().report.area_mm2);
             if (out.back().stop)
@@ -536,9 +574,9 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
                     else
                         for (std::size_t i = 0; i < found.data.size(); ++i)
                             found.data[i] = found.data[i] || pending.data[i];
-                    closed = contact_sheet(c, found);
+                    closed = contact_sheet(cx, found);
                 }
-                pending = dome_contact(c, k, out.back().mask);
+                pending = dome_contact(cx, k, out.back().mask);
             }
         }
     };
@@ -666,7 +704,7 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
         throw core::InvalidInputError("propagate_liver: the seed must be one slice of the image's size");
     if (count(seed) == 0)
         throw core::InvalidInputError("propagate_liver: the seed is empty");
-    Context c{hu, params, progress, nullptr, nullptr, -1, {}};
+    Context c{hu, params, progress, nullptr, nullptr, -1, {}, {}};
     const core::ImageF seed_img = core::axial_slice(hu, seed_slice);
     c.tissue = tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed, seed_img.geometry()));
     LiverResult r = propagate(c, seed, seed_slice);
@@ -693,6 +731,12 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
             if (!std::isfinite(v) || v < 0)
                 throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
                                               std::to_string(v));
+    if (params.use_tissue_stop && (!(params.tissue_stop_fraction > 0.0 && params.tissue_stop_fraction <= 1.0) ||
+                                   !(params.tissue_stop_sigmas > 0.0) || !std::isfinite(params.tissue_stop_sigmas)))
+        throw core::InvalidInputError(
+            "segment_liver: tissue_stop_fraction must lie in (0, 1] and tissue_stop_sigmas be "
+            "finite and > 0 (are " +
+            std::to_string(params.tissue_stop_fraction) + ", " + std::to_string(params.tissue_stop_sigmas) + ")");
     const auto t0 = Clock::now();
     auto say = [&](const std::string& s) {
         if (progress)
@@ -786,7 +830,7 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     }
     lap("rib cage wait", t);
 
-    Context c{work, params, progress, nullptr, nullptr, -1, {}};
+    Context c{work, params, progress, nullptr, nullptr, -1, {}, {}};
     c.ribs = use_ribs ? &ribs : nullptr;
     c.memory = params.use_shape_memory ? memory : nullptr;
     // The start slice shows the heart between both lungs above the liver's dome (thesis L4616):

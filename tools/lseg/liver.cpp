@@ -28,7 +28,7 @@ struct LiverOptions {
     std::string modality = "auto";
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
-         envelope_stop = false;
+         envelope_stop = false, no_tissue_stop = false;
     seg::LiverParams params;
 };
 
@@ -92,6 +92,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_shape_memory = !o.no_shape_memory;
     p.use_3d_pass = !o.no_3d_pass;
     p.use_dome_contact = !o.no_dome_contact;
+    p.use_tissue_stop = !o.no_tissue_stop;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
     p.mr.bias_correction = o.bias_field;
@@ -118,7 +119,10 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         throw core::InvalidInputError(o.image.string() + ": " + e.what());
     }
     int rejected = 0, recovered = 0, bounded = 0, above_contact = 0;
+    std::string not_liver;
     for (const auto& s : r.slices) {
+        if (s.not_liver)
+            not_liver += (not_liver.empty() ? "" : ",") + std::to_string(s.slice);
         above_contact += s.above_contact_mm2 > 0;
         rejected += s.rejected;
         recovered += s.recovered;
@@ -149,16 +153,17 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_recovered", std::to_string(recovered));
         param("result.slices_iteration_bound", std::to_string(bounded));
         param("result.slices_above_contact", std::to_string(above_contact));
+        param("result.tissue_stop_slices", not_liver);
         if (r.bias_corrected)
             param("result.bias_field.gain", fixed(r.bias_min_gain, 3) + " to " + fixed(r.bias_max_gain, 3));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
-        param("components", std::string(p.use_start_slice && ct ? "start-slice " : "") +
-                                (ct ? "" : "mr-contrast-map ") + (r.bias_corrected ? "bias-field " : "") +
-                                (p.use_kmeans ? "kmeans " : "") + (p.use_rib_cage && ct ? "rib-cage " : "") +
-                                (memory && p.use_shape_memory ? "shape-memory " : "") +
-                                (p.use_dome_contact ? "dome-contact " : "") + (p.use_3d_pass ? "3d-pass " : "") +
-                                (p.layer_holds_pressure ? "layer-stop " : "") +
-                                (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
+        param("components",
+              std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
+                  (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
+                  (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
+                  (p.use_dome_contact ? "dome-contact " : "") + (p.use_tissue_stop ? "tissue-stop " : "") +
+                  (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
+                  (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", source);
         h5.write_labels("liver", r.mask, {{1, "liver"}});
@@ -219,6 +224,14 @@ Command add_liver(CLI::App& lseg)
     cmd->add_flag(
         "--no-dome-contact", o->no_dome_contact,
         "Ablation: going up, do not close the columns above a dome contact (the flat diaphragm under the heart)");
+    cmd->add_flag("--no-tissue-stop", o->no_tissue_stop,
+                  "Ablation: do not end the propagation at a slice whose contour lies mostly outside the liver's "
+                  "grey levels");
+    cmd->add_option("--tissue-stop", o->params.tissue_stop_fraction,
+                    "End the propagation at a slice whose contour lies for more than this fraction outside the "
+                    "liver's grey levels")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1.0));
     cmd->add_flag("--layer-stop", o->layer_stop,
                   "Experiment: the snake's pressure acts only inside the liver-like layer on propagated slices");
     cmd->add_flag("--envelope-stop", o->envelope_stop,

@@ -37,6 +37,9 @@ struct LiverSliceReport {
     double shape_score = 0;     //!< the memory's score (<= 1 plausible; 0 without a memory)
     std::string shape_reason;   //!< why the memory rejected it
     double above_contact_mm2 = 0; //!< area kept out as lying above a dome contact found below
+    double outside_fraction = 0;  //!< the contour's share outside the liver's grey levels
+    bool not_liver = false;       //!< ... above LiverParams::tissue_stop_fraction: the slice is
+                                  //!< dropped and the propagation in its direction ends
     double seconds = 0;
 };
 
@@ -116,6 +119,14 @@ struct LiverParams {
     bool layer_holds_pressure = false; //!< on a propagated slice the snake's pressure acts only
                                     //!< inside the liver-like layer; off: it lost 19 points on a
                                     //!< phantom by following the kidney (docs/algorithms/liver.md)
+    //! The tissue stop, at the liver's ends: a propagated slice whose contour lies for more than
+    //! this fraction outside the liver's grey levels (the seed's mean ± tissue_stop_sigmas sd, on
+    //! the slice smoothed with sigma 1 mm) has left the liver (bowel, kidney, fat): it is dropped
+    //! and the propagation in that direction ends. 0.35: every liver slice of the labelled inputs
+    //! stays under 0.25 (docs/algorithms/liver.md, "The tissue stop").
+    bool use_tissue_stop = true;
+    double tissue_stop_fraction = 0.35;
+    double tissue_stop_sigmas = 2.5;
     bool envelope_holds_pressure = false; //!< experiment: on a propagated slice the pressure acts
                                           //!< only inside the growth envelope (the shape memory's, or
                                           //!< max_growth_per_mm), so the front stops at it
