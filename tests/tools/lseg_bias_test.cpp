@@ -80,8 +80,8 @@ TEST(LsegBias, WritesTheCorrectedImageAndTheField)
     EXPECT_LT(worst, 1e-3); // float rounding of values up to 520
 }
 
-// Nothing to fit (an image of zeros) and a bad option: exit 2 and 1, the file or option named, no
-// output left behind.
+// Nothing to fit (an image of zeros), a CT, and a bad option: exit 2, 2 and 1, the file or option
+// named, no output left behind.
 TEST(LsegBias, RefusesWithAClearMessageAndNoOutput)
 {
     const auto dir = test::scratch_dir();
@@ -92,6 +92,18 @@ TEST(LsegBias, RefusesWithAClearMessageAndNoOutput)
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_NE(r.err.find("dark.mhd"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("too few tissue voxels"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "out.h5"));
+
+    // A CT (air at -1000 HU around the body) is refused unless --modality mr says otherwise.
+    core::ImageF ct(g, -1000.0f);
+    for (int k = 0; k < 4; ++k)
+        for (int j = 4; j < 12; ++j)
+            for (int i = 4; i < 12; ++i)
+                ct.data[ct.index(i, j, k)] = 60.0f;
+    io::write_image(dir / "ct.mhd", ct);
+    r = run_lseg("bias " + q(dir / "ct.mhd") + " -o " + q(dir / "out.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_NE(r.err.find("reads as CT"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "out.h5"));
 
     r = run_lseg("bias " + q(shaded_body(dir)) + " -o " + q(dir / "out.h5") + " --degree 7", dir);

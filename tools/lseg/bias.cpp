@@ -4,6 +4,7 @@
 #include "lseg/input.h"
 
 #include "lobe/seg/bias_field.h"
+#include "lobe/seg/liver.h"
 
 #include <iomanip>
 #include <memory>
@@ -17,6 +18,7 @@ namespace {
 struct BiasOptions {
     fs::path image, out, corrected_out, field_out;
     std::string image_name = "image";
+    std::string modality = "auto";
     seg::BiasFieldParams params;
 };
 
@@ -25,6 +27,12 @@ int run_bias(const BiasOptions& o, const tools::Progress& progress, tools::RunRe
     auto& timings = record.timings;
     const core::ImageF volume =
         timings.time("read image", [&] { return core::convert_image<float>(read_any(o.image, o.image_name)); });
+    // A CT's grey levels are Hounsfield units, the same everywhere: a fitted field would only
+    // distort them. Auto refuses what reads as CT (air below -500, as `lseg liver` decides).
+    if (o.modality == "auto" && seg::detect_modality(volume) == seg::Modality::Ct)
+        throw core::InvalidInputError(o.image.string() +
+                                      ": reads as CT (voxels below -500: air in HU); a bias field is an MR's "
+                                      "(--modality mr to correct it anyway)");
     progress.message("estimating the bias field of " + std::to_string(volume.size[0]) + " x " +
                      std::to_string(volume.size[1]) + " x " + std::to_string(volume.size[2]) + " voxels");
     seg::BiasFieldResult r;
@@ -76,6 +84,10 @@ Command add_bias(CLI::App& lseg)
     cmd->add_option("-o,--output", o->out, "Output container (.h5): images/image (corrected), images/bias_field")
         ->required();
     cmd->add_option("--image-name", o->image_name, "Image to read from a .h5 input")->capture_default_str();
+    cmd->add_option("--modality", o->modality,
+                    "auto: refuse a volume that reads as CT (air below -500) | mr: correct whatever it holds")
+        ->check(CLI::IsMember({"auto", "mr"}))
+        ->capture_default_str();
     cmd->add_option("--corrected", o->corrected_out, "Also write the corrected image (e.g. .mhd)");
     cmd->add_option("--field", o->field_out, "Also write the field b (the image divided by it is the corrected one)");
     cmd->add_option("--degree", o->params.degree, "Total degree of the polynomial log b")
