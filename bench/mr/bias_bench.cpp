@@ -10,6 +10,7 @@
 // log b_est - log b_true less its liver mean, in %); on every input the liver's robust CV and
 // block spread of the corrected image. Writes OUT/bias_field.csv (rows go to a .partial file as
 // they come, renamed at the end) and prints each row with the methods' own diagnostics.
+#include "common/args.h"
 #include "n4_peer.h"
 
 #include "lobe/core/any_image.h"
@@ -55,17 +56,6 @@ struct Options {
     std::vector<std::string> inputs, methods; // substring filters (empty = all)
 };
 
-std::vector<std::string> split(const std::string& s)
-{
-    std::vector<std::string> out;
-    std::stringstream ss(s);
-    std::string item;
-    while (std::getline(ss, item, ','))
-        if (!item.empty())
-            out.push_back(item);
-    return out;
-}
-
 bool selected(const std::vector<std::string>& filters, const std::string& name)
 {
     if (filters.empty())
@@ -82,31 +72,6 @@ std::string num(double v, int decimals)
 }
 
 // ---- inputs -------------------------------------------------------------------------------
-
-// tests/seg/liver_test.cpp's t1_like without its shading: HU to a T1-weighted grey level by
-// piecewise-linear interpolation (fat bright, liver above muscle, fluid and air dark).
-core::ImageF t1_like(const core::ImageF& hu)
-{
-    static const std::array<std::pair<float, float>, 8> knots = {{{-1000.f, 0.f},
-                                                                  {-800.f, 10.f},
-                                                                  {-100.f, 450.f},
-                                                                  {10.f, 40.f},
-                                                                  {50.f, 55.f},
-                                                                  {105.f, 100.f},
-                                                                  {160.f, 50.f},
-                                                                  {600.f, 20.f}}};
-    core::ImageF out = hu;
-    for (float& v : out.data) {
-        const float h = std::clamp(v, knots.front().first, knots.back().first);
-        std::size_t i = 1;
-        while (i + 1 < knots.size() && h > knots[i].first)
-            ++i;
-        const auto [x0, y0] = knots[i - 1];
-        const auto [x1, y1] = knots[i];
-        v = y0 + (y1 - y0) * (h - x0) / (x1 - x0);
-    }
-    return out;
-}
 
 // A known multiplicative field, of the index coordinates normalised to [0, 1].
 struct Shading {
@@ -169,7 +134,7 @@ Base phantom_base(const std::array<double, 3>& spacing, std::uint64_t seed)
     const auto ph = phantom::generate_phantom(pp);
     Base b;
     b.name = "phantom-" + num(spacing[0], 1) + "x" + num(spacing[2], 0);
-    b.image = t1_like(core::convert_image<float>(ph.ct));
+    b.image = phantom::t1_weighted(core::convert_image<float>(ph.ct));
     b.liver = labels_in(ph.labels, 1, 4); // SLIVER07's liver: parenchyma, vessels, tumours
     std::fprintf(stderr, "%s: %d x %d x %d, noise seed %llu, generated in %.1f s\n", b.name.c_str(), pp.size[0],
                  pp.size[1], pp.size[2], static_cast<unsigned long long>(seed), seconds_since(t0));
@@ -414,9 +379,9 @@ std::optional<Options> parse(int argc, char** argv)
         else if (a == "--threads" && has_value)
             opt.threads = std::max(1, std::atoi(argv[++i]));
         else if (a == "--inputs" && has_value)
-            opt.inputs = split(argv[++i]);
+            opt.inputs = bench::split(argv[++i]);
         else if (a == "--methods" && has_value)
-            opt.methods = split(argv[++i]);
+            opt.methods = bench::split(argv[++i]);
         else if (a == "--quick")
             opt.quick = true;
         else

@@ -1,6 +1,8 @@
 // The ITK peer of the bias-field benchmark (see n4_peer.h). Only this file includes ITK.
 #include "n4_peer.h"
 
+#include "common/itk_image.h"
+
 #include <itkBSplineControlPointImageFilter.h>
 #include <itkCommand.h>
 #include <itkImage.h>
@@ -24,35 +26,6 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 using FImage = itk::Image<float, 3>;
 using UImage = itk::Image<unsigned char, 3>;
 using N4 = itk::N4BiasFieldCorrectionImageFilter<FImage, UImage, FImage>;
-
-// The lobe grid as an ITK image; `convert` maps each lobe value to the ITK pixel.
-template <class ItkImage, class T, class Convert>
-typename ItkImage::Pointer to_itk(const core::Image3D<T>& img, Convert convert)
-{
-    typename ItkImage::SizeType size;
-    typename ItkImage::SpacingType spacing;
-    typename ItkImage::PointType origin;
-    typename ItkImage::DirectionType direction;
-    for (unsigned a = 0; a < 3; ++a) {
-        size[a] = static_cast<itk::SizeValueType>(img.size[a]);
-        spacing[a] = img.spacing[a];
-        origin[a] = img.origin[a];
-        for (unsigned b = 0; b < 3; ++b)
-            direction(a, b) = img.direction[3 * a + b];
-    }
-    auto out = ItkImage::New();
-    typename ItkImage::RegionType region;
-    region.SetSize(size);
-    out->SetRegions(region);
-    out->SetSpacing(spacing);
-    out->SetOrigin(origin);
-    out->SetDirection(direction);
-    out->Allocate();
-    auto* p = out->GetBufferPointer();
-    for (std::size_t i = 0; i < img.data.size(); ++i)
-        p[i] = convert(img.data[i]);
-    return out;
-}
 
 // libseg's tissue rule (bias_field.cpp): above `fraction` of the 99th percentile of a strided
 // sample of at most about a million voxels, and above 0 (N4 takes the log).

@@ -12,6 +12,7 @@
 // cross-checked by an independent computation (bench/seg/itk_peer.cpp); a disagreement is
 // written into the notes. Writes OUT/seg_speed_accuracy.csv (rows appended to a .partial file
 // as they come, renamed at the end) and prints each row.
+#include "common/args.h"
 #include "itk_peer.h"
 
 #include "lobe/core/any_image.h"
@@ -641,17 +642,6 @@ int usage(const char* argv0, int code)
     return code;
 }
 
-std::vector<std::string> split(const std::string& s)
-{
-    std::vector<std::string> out;
-    std::stringstream ss(s);
-    std::string item;
-    while (std::getline(ss, item, ','))
-        if (!item.empty())
-            out.push_back(item);
-    return out;
-}
-
 } // namespace
 
 int main(int argc, char** argv)
@@ -683,9 +673,9 @@ int main(int argc, char** argv)
         else if (a == "--quick")
             opt.quick = true;
         else if (a == "--inputs")
-            opt.inputs = split(value());
+            opt.inputs = bench::split(value());
         else if (a == "--methods")
-            opt.methods = split(value());
+            opt.methods = bench::split(value());
         else if (a == "--reps") {
             opt.reps = std::atoi(value().c_str());
             reps_given = true;

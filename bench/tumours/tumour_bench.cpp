@@ -3,6 +3,7 @@
 // with the truth liver and vessels given.
 //   tumour_bench [--inputs default,fine,coarse,spXxYxZsN] [--variants full,cdsg,cdsg-unshrunk,seeds,no-vessels]
 //                [--csv FILE]
+#include "common/args.h"
 #include "lphantom/phantom.h"
 
 #include "lobe/seg/tumours.h"
@@ -19,17 +20,6 @@
 using namespace lobe;
 
 namespace {
-
-std::vector<std::string> split(const std::string& s)
-{
-    std::vector<std::string> out;
-    std::stringstream ss(s);
-    std::string t;
-    while (std::getline(ss, t, ','))
-        if (!t.empty())
-            out.push_back(t);
-    return out;
-}
 
 phantom::PhantomParams input(const std::string& name)
 {
@@ -70,9 +60,9 @@ int main(int argc, char** argv)
     for (int a = 1; a + 1 < argc; a += 2) {
         const std::string s = argv[a];
         if (s == "--inputs")
-            inputs = split(argv[a + 1]);
+            inputs = bench::split(argv[a + 1]);
         else if (s == "--variants")
-            variants = split(argv[a + 1]);
+            variants = bench::split(argv[a + 1]);
         else if (s == "--csv")
             csv = argv[a + 1];
         else {

@@ -10,6 +10,7 @@
 // 0.7 x 0.7 x 1 mm: the timing case), fine (0.8 x 0.8 x 1.5), coarse (1.4 x 1.4 x 2.5),
 // noisy (default grid, 25 HU noise), gapNN (default grid, 5 mm of a level-3 portal branch at NN %
 // contrast), invisible (vessels at the liver's HU), novessels, spXxYxZsN (any spacing and seed).
+#include "common/args.h"
 #include "lphantom/phantom.h"
 
 #include "lobe/seg/fuzzy_connectedness.h"
@@ -35,17 +36,6 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0)
 {
     return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-std::vector<std::string> split(const std::string& s)
-{
-    std::vector<std::string> out;
-    std::stringstream ss(s);
-    std::string t;
-    while (std::getline(ss, t, ','))
-        if (!t.empty())
-            out.push_back(t);
-    return out;
 }
 
 struct Input {
@@ -150,9 +140,9 @@ int main(int argc, char** argv)
                 return argv[++a];
             };
             if (s == "--inputs")
-                inputs = split(next());
+                inputs = bench::split(next());
             else if (s == "--variants")
-                variants = split(next());
+                variants = bench::split(next());
             else if (s == "--reps")
                 reps = std::max(1, std::stoi(next()));
             else if (s == "--csv")

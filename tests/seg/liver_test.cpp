@@ -302,32 +302,15 @@ TEST(LiverPipeline, PropagationChecksItsSeed)
 
 namespace {
 
-// A T1-weighted-looking volume made from a CT phantom: a piecewise-linear map of HU in which fat
-// is brightest, the liver the brightest soft tissue, muscle, fluid, blood and bone darker, air and
-// lung black (relative grey levels as in mr-small: liver 97, wall muscle 20-60, fat 200-550), times
-// a smooth shading of +-`shading` across the body, right to left (MR's intensity inhomogeneity).
+// The CT phantom's T1-weighted look (phantom::t1_weighted) times a smooth shading of
+// +-`shading` across the body, right to left (MR's intensity inhomogeneity).
 core::ImageF t1_like(const core::ImageF& hu, double shading = 0.15)
 {
-    static const std::array<std::pair<float, float>, 8> knots = {{{-1000.f, 0.f},
-                                                                  {-800.f, 10.f},
-                                                                  {-100.f, 450.f},
-                                                                  {10.f, 40.f},
-                                                                  {50.f, 55.f},
-                                                                  {105.f, 100.f},
-                                                                  {160.f, 50.f},
-                                                                  {600.f, 20.f}}};
-    core::ImageF out = hu;
+    core::ImageF out = phantom::t1_weighted(hu);
     const int nx = hu.size[0];
     for (std::size_t v = 0; v < out.data.size(); ++v) {
-        const float h = std::clamp(hu.data[v], knots.front().first, knots.back().first);
-        std::size_t i = 1;
-        while (i + 1 < knots.size() && h > knots[i].first)
-            ++i;
-        const auto [x0, y0] = knots[i - 1];
-        const auto [x1, y1] = knots[i];
-        const float t1 = y0 + (y1 - y0) * (h - x0) / (x1 - x0);
         const double x = double(static_cast<int>(v % static_cast<std::size_t>(nx))) / (nx - 1); // 0 right .. 1 left
-        out.data[v] = static_cast<float>(double(t1) * (1.0 + shading - 2.0 * shading * x));
+        out.data[v] = static_cast<float>(double(out.data[v]) * (1.0 + shading - 2.0 * shading * x));
     }
     return out;
 }

@@ -3,12 +3,14 @@
 #include "lobe/core/errors.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
 #include <limits>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 // How it works (docs/phantom.md): every tissue is an analytic shape in mm. classify(p) answers
@@ -1583,6 +1585,29 @@ std::size_t add_vessel_gap(PhantomResult& ph, const PhantomParams& params, int e
                 ++changed;
             }
     return changed;
+}
+
+core::ImageF t1_weighted(const core::ImageF& hu)
+{
+    static const std::array<std::pair<float, float>, 8> knots = {{{-1000.f, 0.f},
+                                                                  {-800.f, 10.f},
+                                                                  {-100.f, 450.f},
+                                                                  {10.f, 40.f},
+                                                                  {50.f, 55.f},
+                                                                  {105.f, 100.f},
+                                                                  {160.f, 50.f},
+                                                                  {600.f, 20.f}}};
+    core::ImageF out = hu;
+    for (float& v : out.data) {
+        const float h = std::clamp(v, knots.front().first, knots.back().first);
+        std::size_t i = 1;
+        while (i + 1 < knots.size() && h > knots[i].first)
+            ++i;
+        const auto [x0, y0] = knots[i - 1];
+        const auto [x1, y1] = knots[i];
+        v = y0 + (y1 - y0) * (h - x0) / (x1 - x0);
+    }
+    return out;
 }
 
 } // namespace lobe::phantom

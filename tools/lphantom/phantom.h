@@ -216,6 +216,12 @@ core::CentrelineGraph truth_graph(const PhantomTruth& truth);
 std::size_t add_vessel_gap(PhantomResult& phantom, const PhantomParams& params, int edge, double start_mm,
                            double length_mm, double contrast_fraction);
 
+//! A T1-weighted look of a CT phantom, for the MR paths: HU mapped piecewise linearly to grey
+//! levels in a T1 image's order (fat brightest, the liver the brightest soft tissue; muscle,
+//! fluid, blood and bone darker; air and lung black; relative levels as in mr-small: liver 97,
+//! wall muscle 20-60, fat 200-550). No shading: a caller multiplies in its own field.
+core::ImageF t1_weighted(const core::ImageF& hu);
+
 //! Generates the phantom. Deterministic: the same parameters give the same bytes; the seed
 //! changes only the noise. Single-threaded; about 3 s for the default grid on one core.
 //! \throw core::InvalidInputError if params_problem(params) is not empty.
