@@ -53,6 +53,7 @@ struct Options {
     int reps = 3;    // repetitions of a cheap run (the fastest is reported)
     int threads = 2; // OpenMP (lobe's field evaluation) and ITK
     bool quick = false;
+    fs::path volumes; // non-empty: write each shaded phantom and its liver here (bench/mr/liver_shaded.sh)
     std::vector<std::string> inputs, methods; // substring filters (empty = all)
 };
 
@@ -357,7 +358,7 @@ std::vector<Method> methods(const Options& opt)
 void usage()
 {
     std::fprintf(stderr, "usage: bias_bench [--out DIR] [--data DIR] [--reps N] [--threads N] [--inputs SUBSTR,..] "
-                         "[--methods SUBSTR,..] [--quick]\n");
+                         "[--methods SUBSTR,..] [--quick] [--volumes DIR]\n");
 }
 
 std::optional<Options> parse(int argc, char** argv)
@@ -384,6 +385,8 @@ std::optional<Options> parse(int argc, char** argv)
             opt.methods = bench::split(argv[++i]);
         else if (a == "--quick")
             opt.quick = true;
+        else if (a == "--volumes" && has_value)
+            opt.volumes = argv[++i];
         else
             return std::nullopt;
     }
@@ -458,6 +461,11 @@ int main(int argc, char** argv)
                          [&](const Shading& s) { return selected(opt.inputs, prefix + s.name); }))
             continue;
         const Base base = phantom_base(spacing, seed);
+        const std::string stem = prefix.substr(0, prefix.size() - 1);
+        if (!opt.volumes.empty()) {
+            fs::create_directories(opt.volumes);
+            io::write_image(opt.volumes / (stem + "_liver.mhd"), base.liver);
+        }
         for (const Shading& s : fields) {
             const std::string name = prefix + s.name;
             if (!selected(opt.inputs, name))
@@ -466,6 +474,8 @@ int main(int argc, char** argv)
             core::ImageF image = base.image;
             for (std::size_t i = 0; i < image.data.size(); ++i)
                 image.data[i] *= truth.data[i];
+            if (!opt.volumes.empty())
+                io::write_image(opt.volumes / (stem + "_" + s.name + ".mhd"), image);
             run_input(name, image, base, &truth);
         }
     }
