@@ -212,7 +212,8 @@ core::LabelImage3D band_of(const core::ImageF& smoothed, const Tissue& t, double
 }
 
 struct SliceOutcome {
-    core::LabelImage3D mask; // on the slice's geometry
+    core::LabelImage3D mask;    // on the slice's geometry; the next slice starts from it
+    core::LabelImage3D snapped; // the mask moved on to the edges (empty: as mask); it is stacked
     LiverSliceReport report;
     bool stop = false;
 };
@@ -492,6 +493,16 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             std::fill(out.mask.data.begin(), out.mask.data.end(), std::uint8_t(0));
         }
     }
+    if (p.use_edge_snap && !out.report.not_liver && out.report.area_mm2 >= p.min_area_mm2) {
+        // Within the snake's window, on the image the snake saw (excluded organs are fat there).
+        const Window sw = window_around(out.mask, p.window_margin_mm);
+        const SnakeResult s = snap_to_edges(crop(img, sw), crop(out.mask, sw), p.snake, p.snap);
+        out.snapped = core::LabelImage3D(g, 0);
+        paste(s.mask, sw, out.snapped);
+        if (!excluded.data.empty())
+            for (std::size_t i = 0; i < out.snapped.data.size(); ++i)
+                out.snapped.data[i] = out.snapped.data[i] && !excluded.data[i];
+    }
     out.report.seconds = seconds_since(t0);
     if (out.report.area_mm2 < p.min_area_mm2)
         out.stop = true;
@@ -614,8 +625,10 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
 
     const std::size_t plane = static_cast<std::size_t>(hu.size[0]) * static_cast<std::size_t>(hu.size[1]);
     auto place = [&](const SliceOutcome& s) {
-        std::copy(s.mask.data.begin(), s.mask.data.end(),
-                  result.mask.data.begin() + static_cast<std::ptrdiff_t>(plane * static_cast<std::size_t>(s.report.slice)));
+        const core::LabelImage3D& m = s.snapped.data.empty() ? s.mask : s.snapped;
+        std::copy(m.data.begin(), m.data.end(),
+                  result.mask.data.begin() +
+                      static_cast<std::ptrdiff_t>(plane * static_cast<std::size_t>(s.report.slice)));
         result.slices.push_back(s.report);
     };
     for (auto it = down.rbegin(); it != down.rend(); ++it)

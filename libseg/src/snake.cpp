@@ -152,6 +152,17 @@ core::ImageF non_maximum_suppression(const core::ImageF& f, const core::ImageF& 
     return out;
 }
 
+//! CDSG's binary edges: hysteresis on the full edge map (its connectivity survives corners and
+//! T-junctions, where suppression breaks ridges), then thinned to the ridges that suppression keeps.
+core::LabelImage3D thin_binary_edges(const core::ImageF& f, const core::ImageF& smoothed, const BinaryEdgeParams& bp)
+{
+    core::LabelImage3D bin = binary_edges(f, noise_adapted(f, bp, 3.0));
+    const core::ImageF ridges = non_maximum_suppression(f, smoothed);
+    for (std::size_t i = 0; i < bin.data.size(); ++i)
+        bin.data[i] = bin.data[i] && ridges.data[i] > 0.f ? 1 : 0;
+    return bin;
+}
+
 //! A stopping function of the (competition-weighted) edge map: 1 / (1 + (|∇I| / k)^power),
 //! with |∇I| = f * scale since f is |∇I| normalised by `scale`. The GAC's g and CDSG's pressure
 //! scaling are both this, with their own k (and CDSG's exponent).
@@ -183,15 +194,8 @@ Terms cdsg_terms(const Context& ctx, const core::ImageF& f)
     const SnakeParams& p = ctx.params;
     Terms t;
     // Chessboard distance to the binary edges: pressure outside δ1, GVF inside (the hand-over).
-    // Hysteresis on the full edge map (its connectivity survives corners and T-junctions,
-    // where suppression breaks ridges), then thinned to the ridges that suppression keeps.
-    core::LabelImage3D bin = binary_edges(f, noise_adapted(f, p.cdsg.edges, 3.0));
-    {
-        const core::ImageF ridges = non_maximum_suppression(f, ctx.edges.intensity);
-        for (std::size_t i = 0; i < bin.data.size(); ++i)
-            bin.data[i] = bin.data[i] && ridges.data[i] > 0.f ? 1 : 0;
-    }
-    const core::Image3D<std::int32_t> dch = chessboard_distance(bin);
+    const core::Image3D<std::int32_t> dch =
+        chessboard_distance(thin_binary_edges(f, ctx.edges.intensity, p.cdsg.edges));
     core::LabelImage3D band(f.geometry(), 0);
     bool any_band = false;
     for (std::size_t i = 0; i < band.data.size(); ++i)
@@ -391,6 +395,55 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
     out.reinitialisations = run.ls.reinitialisations;
     out.converged = run.ls.converged;
     out.leak_stopped = run.ls.leak_stopped;
+    return out;
+}
+
+SnakeResult snap_to_edges(const core::ImageF& image, const core::LabelImage3D& mask, const SnakeParams& params,
+                          const SnapParams& snap)
+{
+    if (image.data.empty() || image.voxel_count() != image.data.size())
+        throw core::InvalidInputError("snap_to_edges: the image is empty or its data does not match its size");
+    if (!core::same_grid(image, mask))
+        throw core::InvalidInputError("snap_to_edges: the mask is not on the image's grid");
+    if (snap.band < 1 || snap.iterations < 1)
+        throw core::InvalidInputError("snap_to_edges: band and iterations must be >= 1 (are " +
+                                      std::to_string(snap.band) + ", " + std::to_string(snap.iterations) + ")");
+    const auto t0 = Clock::now();
+    const core::ImageF phi0 = initial_level_set(mask); // throws for an empty or full mask
+    const EdgeMapResult edges = edge_map(image, params.edge);
+    const core::Image3D<std::int32_t> dch =
+        chessboard_distance(thin_binary_edges(edges.edge, edges.intensity, params.cdsg.edges));
+    core::LabelImage3D band(image.geometry(), 0);
+    bool any = false;
+    for (std::size_t i = 0; i < band.data.size(); ++i)
+        if (dch.data[i] >= 0 && dch.data[i] <= snap.band) {
+            band.data[i] = 1;
+            any = true;
+        }
+    VectorField field(image.geometry());
+    if (any) {
+        GvfParams gp = params.gvf;
+        gp.iterations = std::max(1, params.band_gvf_iterations);
+        field =
+            normalised_speed_field(gradient_vector_flow(edges.edge, band, gp).field, params.cdsg.pressure, 0.05, &band);
+    }
+    SnakeResult out;
+    out.field_seconds = seconds_since(t0);
+    SpeedTerms terms;
+    terms.curvature_weight = params.curvature_weight;
+    terms.stopping = &edges.stopping;
+    terms.advection = &field;
+    LevelSetParams lp = params.level_set;
+    lp.max_iterations = snap.iterations;
+    lp.leak_checks = 0; // no pressure: nothing can leak
+    const auto t1 = Clock::now();
+    LevelSetResult ls = evolve_level_set(phi0, terms, lp);
+    out.evolve_seconds = seconds_since(t1);
+    out.mask = std::move(ls.mask);
+    out.phi = std::move(ls.phi);
+    out.iterations = ls.iterations;
+    out.reinitialisations = ls.reinitialisations;
+    out.converged = ls.converged;
     return out;
 }
 

@@ -249,6 +249,43 @@ TEST(LiverPipeline, StopsAtTheLiversTip)
     EXPECT_GE(m.dice, 0.88); // measured 0.908; the heart over the dome costs the rest
 }
 
+// The edge snap (LiverParams::use_edge_snap): the propagated snakes end at their iteration bound
+// with the contour short of the edge, and the truth's outermost ring is missed. On this phantom
+// (0.8 x 0.8 x 2.5 mm, seed 13) with the 3-D pass off, so that the stacked contours are measured:
+// the share of the truth's voxels that lie just outside the mask (4-neighbours in the slice of a
+// mask voxel), and Dice and ASD. Measured: missed rim 2.9 % -> 1.6 %, Dice 0.933 -> 0.947, ASD 3.08
+// -> 2.75 mm. Bounds: the rim down by a quarter, half the Dice gain, ASD not worse.
+TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
+{
+    const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
+    seg::LiverParams p;
+    p.use_3d_pass = false;
+    const seg::LiverResult on = seg::segment_liver(c.hu, p);
+    p.use_edge_snap = false;
+    const seg::LiverResult off = seg::segment_liver(c.hu, p);
+    const auto rim_missed = [&](const core::LabelImage3D& m) {
+        std::size_t rim = 0, truth = 0;
+        for (int k = 0; k < m.size[2]; ++k)
+            for (int j = 1; j + 1 < m.size[1]; ++j)
+                for (int i = 1; i + 1 < m.size[0]; ++i) {
+                    if (!c.truth.at(i, j, k))
+                        continue;
+                    ++truth;
+                    rim += !m.at(i, j, k) &&
+                           (m.at(i - 1, j, k) || m.at(i + 1, j, k) || m.at(i, j - 1, k) || m.at(i, j + 1, k));
+                }
+        return double(rim) / double(truth);
+    };
+    const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
+    const auto m_off = seg::evaluate_segmentation(off.mask, c.truth);
+    std::cerr << "edge snap: missed rim " << 100 * rim_missed(off.mask) << " % -> " << 100 * rim_missed(on.mask)
+              << " % of the truth, Dice " << m_off.dice << " -> " << m_on.dice << ", ASD " << m_off.surface.average
+              << " -> " << m_on.surface.average << " mm\n";
+    EXPECT_LT(rim_missed(on.mask), 0.75 * rim_missed(off.mask));
+    EXPECT_GE(m_on.dice, m_off.dice + 0.007);
+    EXPECT_LE(m_on.surface.average, m_off.surface.average);
+}
+
 // The tissue stop (LiverParams::use_tissue_stop) at the liver's lower tip: on this phantom (1.0 x
 // 1.0 x 3 mm, seed 4; the stop's threshold was set on the labelled inputs of liver.md, not on it)
 // the contour crosses from the liver's tip into the right kidney (112 HU against the liver's 105)

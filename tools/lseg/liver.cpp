@@ -28,7 +28,7 @@ struct LiverOptions {
     std::string modality = "auto";
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
-         envelope_stop = false, no_tissue_stop = false;
+         envelope_stop = false, no_tissue_stop = false, no_edge_snap = false;
     seg::LiverParams params;
 };
 
@@ -93,6 +93,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_3d_pass = !o.no_3d_pass;
     p.use_dome_contact = !o.no_dome_contact;
     p.use_tissue_stop = !o.no_tissue_stop;
+    p.use_edge_snap = !o.no_edge_snap;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
     p.mr.bias_correction = o.bias_field;
@@ -157,13 +158,14 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         if (r.bias_corrected)
             param("result.bias_field.gain", fixed(r.bias_min_gain, 3) + " to " + fixed(r.bias_max_gain, 3));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
-        param("components",
-              std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
-                  (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
-                  (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
-                  (p.use_dome_contact ? "dome-contact " : "") + (p.use_tissue_stop ? "tissue-stop " : "") +
-                  (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
-                  (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
+        param("components", std::string(p.use_start_slice && ct ? "start-slice " : "") +
+                                (ct ? "" : "mr-contrast-map ") + (r.bias_corrected ? "bias-field " : "") +
+                                (p.use_kmeans ? "kmeans " : "") + (p.use_rib_cage && ct ? "rib-cage " : "") +
+                                (memory && p.use_shape_memory ? "shape-memory " : "") +
+                                (p.use_dome_contact ? "dome-contact " : "") +
+                                (p.use_tissue_stop ? "tissue-stop " : "") + (p.use_edge_snap ? "edge-snap " : "") +
+                                (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
+                                (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", source);
         h5.write_labels("liver", r.mask, {{1, "liver"}});
@@ -232,6 +234,15 @@ Command add_liver(CLI::App& lseg)
                     "liver's grey levels")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 1.0));
+    cmd->add_flag("--no-edge-snap", o->no_edge_snap,
+                  "Ablation: stack the snake's contours as they are, not moved on to the edge ridge");
+    cmd->add_option("--snap-band", o->params.snap.band,
+                    "Edge snap: the field reaches this many voxels (chessboard) from an edge")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 20));
+    cmd->add_option("--snap-iterations", o->params.snap.iterations, "Edge snap: level-set iterations")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000));
     cmd->add_flag("--layer-stop", o->layer_stop,
                   "Experiment: the snake's pressure acts only inside the liver-like layer on propagated slices");
     cmd->add_flag("--envelope-stop", o->envelope_stop,

@@ -127,6 +127,12 @@ struct LiverParams {
     bool use_tissue_stop = true;
     double tissue_stop_fraction = 0.35;
     double tissue_stop_sigmas = 2.5;
+    //! The edge snap: each slice's accepted contour is moved on to the edge ridge by a short
+    //! pressure-free run (`snap_to_edges`) before it is stacked; the propagation goes on from the
+    //! unsnapped contour. Without it CDSG leaves the contour 1-2 voxels inside the ridge
+    //! (docs/algorithms/liver.md, "The edge snap").
+    bool use_edge_snap = true;
+    SnapParams snap;
     bool envelope_holds_pressure = false; //!< experiment: on a propagated slice the pressure acts
                                           //!< only inside the growth envelope (the shape memory's, or
                                           //!< max_growth_per_mm), so the front stops at it

@@ -96,4 +96,22 @@ struct SnakeResult {
 SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& init, const SnakeParams& params = {},
                           const core::LabelImage3D* templ = nullptr, const core::LabelImage3D* region = nullptr);
 
+//! The edge snap: a short, pressure-free run that moves a converged contour on to the ridge of
+//! the edge map. CDSG's pressure is damped by a sharp stopping function a few voxels before an
+//! edge and its field acts only within δ1 of the ridge, so a front settles 1-2 voxels inside the
+//! ridge between the two (docs/segmentation.md, "The edge snap"). Here the band-limited GGVF
+//! field acts within `band` voxels (chessboard) of the thinned binary edges; where no edge is that
+//! near, only the curvature term moves the contour.
+struct SnapParams {
+    int band = 3;        //!< chessboard distance of the field's reach [voxels], > CdsgParams::edge_band
+    int iterations = 20; //!< level-set iterations (the field moves the front about 1 voxel per 2)
+};
+
+//! Snaps the contour of `mask` to the edges of `image` (raw intensities, windowed and smoothed
+//! by params.edge; the binary edges and GGVF are CDSG's). Returns the snapped mask and φ;
+//! `converged` is the run's own convergence test. 	hrow InvalidInputError on a grid mismatch,
+//! an empty or full mask, non-finite values, or band < 1 or iterations < 1.
+SnakeResult snap_to_edges(const core::ImageF& image, const core::LabelImage3D& mask, const SnakeParams& params = {},
+                          const SnapParams& snap = {});
+
 } // namespace lobe::seg
