@@ -44,6 +44,7 @@ variants=("full|--shape $work/shape.h5"
           "no 3-D pass|--shape $work/shape.h5 --no-3d-pass"
           "no dome contact|--shape $work/shape.h5 --no-dome-contact"
           "no tissue stop|--shape $work/shape.h5 --no-tissue-stop"
+          "no edge snap|--shape $work/shape.h5 --no-edge-snap"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"

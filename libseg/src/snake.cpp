@@ -398,6 +398,68 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
     return out;
 }
 
+namespace {
+
+//! Trilinear sample of `img` at the index-space point (x, y, z), clamped to the grid.
+double sample(const core::ImageF& img, double x, double y, double z)
+{
+    const double p[3] = {x, y, z};
+    int i0[3];
+    double w[3];
+    for (int a = 0; a < 3; ++a) {
+        const double c = std::clamp(p[a], 0.0, double(img.size[a] - 1));
+        i0[a] = std::min(static_cast<int>(std::floor(c)), std::max(0, img.size[a] - 2));
+        w[a] = img.size[a] > 1 ? c - i0[a] : 0.0;
+    }
+    double v = 0.0;
+    for (int dz = 0; dz < (img.size[2] > 1 ? 2 : 1); ++dz)
+        for (int dy = 0; dy < (img.size[1] > 1 ? 2 : 1); ++dy)
+            for (int dx = 0; dx < (img.size[0] > 1 ? 2 : 1); ++dx)
+                v += (dx ? w[0] : 1 - w[0]) * (dy ? w[1] : 1 - w[1]) * (dz ? w[2] : 1 - w[2]) *
+                     double(img.at(i0[0] + dx, i0[1] + dy, i0[2] + dz));
+    return v;
+}
+
+//! The gate: a voxel the snap added to `before` stays only if its intensity lies at least `level`
+//! of the way from the intensity two voxels outwards to the one two voxels inwards along the
+//! contour's normal (∇φ). Where the surroundings fall off gradually (soft tissue, then fat) the
+//! gradient's ridge lies outside the half-way crossing, and the snap alone overshoots.
+void keep_inner_side(core::LabelImage3D& mask, const core::LabelImage3D& before, const core::ImageF& phi,
+                     const core::ImageF& intensity, double level)
+{
+    const double reach = 2.0; // voxels of the in-plane grid
+    const bool is3d = mask.size[2] > 1;
+    for (int k = 0; k < mask.size[2]; ++k)
+        for (int j = 0; j < mask.size[1]; ++j)
+            for (int i = 0; i < mask.size[0]; ++i) {
+                const std::size_t c = mask.index(i, j, k);
+                if (!mask.data[c] || before.data[c])
+                    continue;
+                // ∇φ per index step, via central differences clamped to the grid.
+                const auto d = [&](int a) {
+                    int lo[3] = {i, j, k}, hi[3] = {i, j, k};
+                    lo[a] = std::max(0, lo[a] - 1);
+                    hi[a] = std::min(mask.size[a] - 1, hi[a] + 1);
+                    if (hi[a] == lo[a])
+                        return 0.0;
+                    return (double(phi.at(hi[0], hi[1], hi[2])) - double(phi.at(lo[0], lo[1], lo[2]))) /
+                           (hi[a] - lo[a]);
+                };
+                double n[3] = {d(0), d(1), is3d ? d(2) : 0.0};
+                const double norm = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+                if (!(norm > 0.0))
+                    continue;
+                for (double& v : n)
+                    v *= reach / norm;
+                const double inner = sample(intensity, i - n[0], j - n[1], k - n[2]);
+                const double outer = sample(intensity, i + n[0], j + n[1], k + n[2]);
+                if (double(intensity.data[c]) < outer + level * (inner - outer))
+                    mask.data[c] = 0;
+            }
+}
+
+} // namespace
+
 SnakeResult snap_to_edges(const core::ImageF& image, const core::LabelImage3D& mask, const SnakeParams& params,
                           const SnapParams& snap)
 {
@@ -405,9 +467,13 @@ SnakeResult snap_to_edges(const core::ImageF& image, const core::LabelImage3D& m
         throw core::InvalidInputError("snap_to_edges: the image is empty or its data does not match its size");
     if (!core::same_grid(image, mask))
         throw core::InvalidInputError("snap_to_edges: the mask is not on the image's grid");
-    if (snap.band < 1 || snap.iterations < 1)
-        throw core::InvalidInputError("snap_to_edges: band and iterations must be >= 1 (are " +
-                                      std::to_string(snap.band) + ", " + std::to_string(snap.iterations) + ")");
+    if (snap.band < 1 || snap.iterations < 1 || snap.gvf_iterations < 1 ||
+        !(snap.gate_level >= 0.0 && snap.gate_level <= 1.0))
+        throw core::InvalidInputError("snap_to_edges: band, iterations and gvf_iterations must be >= 1 and gate_level "
+                                      "in [0, 1] (are " +
+                                      std::to_string(snap.band) + ", " + std::to_string(snap.iterations) + ", " +
+                                      std::to_string(snap.gvf_iterations) + ", " + std::to_string(snap.gate_level) +
+                                      ")");
     const auto t0 = Clock::now();
     const core::ImageF phi0 = initial_level_set(mask); // throws for an empty or full mask
     const EdgeMapResult edges = edge_map(image, params.edge);
@@ -423,7 +489,7 @@ SnakeResult snap_to_edges(const core::ImageF& image, const core::LabelImage3D& m
     VectorField field(image.geometry());
     if (any) {
         GvfParams gp = params.gvf;
-        gp.iterations = std::max(1, params.band_gvf_iterations);
+        gp.iterations = snap.gvf_iterations;
         field =
             normalised_speed_field(gradient_vector_flow(edges.edge, band, gp).field, params.cdsg.pressure, 0.05, &band);
     }
@@ -438,6 +504,8 @@ SnakeResult snap_to_edges(const core::ImageF& image, const core::LabelImage3D& m
     lp.leak_checks = 0; // no pressure: nothing can leak
     const auto t1 = Clock::now();
     LevelSetResult ls = evolve_level_set(phi0, terms, lp);
+    if (snap.gate_level > 0.0)
+        keep_inner_side(ls.mask, mask, ls.phi, edges.intensity, snap.gate_level);
     out.evolve_seconds = seconds_since(t1);
     out.mask = std::move(ls.mask);
     out.phi = std::move(ls.phi);

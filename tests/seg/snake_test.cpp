@@ -534,4 +534,7 @@ TEST(Snake, EdgeSnapMovesTheContourOnToTheEdge)
     EXPECT_THROW(seg::snap_to_edges(img, core::LabelImage3D(grid2d(33), 1)), core::InvalidInputError) << "grid";
     EXPECT_THROW(seg::snap_to_edges(img, truth, {}, {0, 20}), core::InvalidInputError) << "band 0";
     EXPECT_THROW(seg::snap_to_edges(img, truth, {}, {3, 0}), core::InvalidInputError) << "no iterations";
+    seg::SnapParams bad_gate;
+    bad_gate.gate_level = 1.5;
+    EXPECT_THROW(seg::snap_to_edges(img, truth, {}, bad_gate), core::InvalidInputError) << "gate level above 1";
 }

@@ -105,12 +105,20 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
 struct SnapParams {
     int band = 3;        //!< chessboard distance of the field's reach [voxels], > CdsgParams::edge_band
     int iterations = 20; //!< level-set iterations (the field moves the front about 1 voxel per 2)
+    int gvf_iterations = 10; //!< GGVF iterations in the band (its field there is mostly ∇f's; 40 gain nothing)
+    //! The gate: a voxel the snap adds stays only if its smoothed intensity lies at least this far
+    //! (as a fraction) from the intensity two voxels outwards to the one two voxels inwards along
+    //! the contour's normal; 0 = no gate. 0.5 is the half-way crossing of the edge's profile, the
+    //! boundary of a blurred step: where the surroundings fall off gradually (soft tissue, then
+    //! fat) the gradient's ridge lies outside it and the field alone overshoots.
+    double gate_level = 0.5;
 };
 
 //! Snaps the contour of `mask` to the edges of `image` (raw intensities, windowed and smoothed
 //! by params.edge; the binary edges and GGVF are CDSG's). Returns the snapped mask and φ;
 //! `converged` is the run's own convergence test. 	hrow InvalidInputError on a grid mismatch,
-//! an empty or full mask, non-finite values, or band < 1 or iterations < 1.
+//! an empty or full mask, non-finite values, a band or iteration count below 1, or a gate_level
+//! outside [0, 1].
 SnakeResult snap_to_edges(const core::ImageF& image, const core::LabelImage3D& mask, const SnakeParams& params = {},
                           const SnapParams& snap = {});
 
