@@ -57,6 +57,7 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_EQ(parameter(prov.back(), "result.start_slice.found"), "true");
     EXPECT_NE(parameter(prov.back(), "components").find("dome-contact"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("tissue-stop"), std::string::npos);
+    EXPECT_NE(parameter(prov.back(), "components").find("edge-snap"), std::string::npos);
     EXPECT_FALSE(parameter(prov.back(), "result.slices_above_contact").empty());
     bool timed = false;
     for (const auto& [name, seconds] : prov.back().timings)
