@@ -119,6 +119,63 @@ core::LabelImage3D shrink(const core::LabelImage3D& m, double r_mm)
     return out;
 }
 
+//! Drops from the one-slice mask `m` every separate 8-connected piece (not its largest) that
+//! touches none of the previous slice's largest piece and has more than `limit` times the
+//! pixels of the previous slice's pieces it overlaps. Returns the pixels dropped.
+std::size_t drop_growing_pieces(core::LabelImage3D& m, const core::LabelImage3D& previous, double limit)
+{
+    cv::Mat cur(m.size[1], m.size[0], CV_8U, m.data.data());
+    cv::Mat prev(previous.size[1], previous.size[0], CV_8U, const_cast<std::uint8_t*>(previous.data.data()));
+    cv::Mat lc, lp, sc, sp, centroids;
+    const int nc = cv::connectedComponentsWithStats(cur, lc, sc, centroids, 8, CV_32S);
+    if (nc <= 2)
+        return 0; // one piece (or none): nothing separate
+    const int np = cv::connectedComponentsWithStats(prev, lp, sp, centroids, 8, CV_32S);
+    const auto largest = [](const cv::Mat& stats, int n) {
+        int best = 0;
+        for (int l = 1; l < n; ++l)
+            if (!best || stats.at<int>(l, cv::CC_STAT_AREA) > stats.at<int>(best, cv::CC_STAT_AREA))
+                best = l;
+        return best;
+    };
+    const int cur_main = largest(sc, nc), prev_main = largest(sp, np);
+    std::vector<std::vector<char>> overlap(static_cast<std::size_t>(nc),
+                                           std::vector<char>(static_cast<std::size_t>(np), 0));
+    for (int j = 0; j < lc.rows; ++j)
+        for (int i = 0; i < lc.cols; ++i) {
+            const int a = lc.at<int>(j, i), b = lp.at<int>(j, i);
+            if (a && b)
+                overlap[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)] = 1;
+        }
+    std::vector<char> drop(static_cast<std::size_t>(nc), 0);
+    bool any = false;
+    for (int l = 1; l < nc; ++l) {
+        if (l == cur_main)
+            continue;
+        const auto& o = overlap[static_cast<std::size_t>(l)];
+        if (prev_main > 0 && o[static_cast<std::size_t>(prev_main)])
+            continue; // split off the main piece on this slice: no predecessor of its own yet
+        double before = 0;
+        for (int b = 1; b < np; ++b)
+            if (o[static_cast<std::size_t>(b)])
+                before += sp.at<int>(b, cv::CC_STAT_AREA);
+        if (double(sc.at<int>(l, cv::CC_STAT_AREA)) > limit * before) {
+            drop[static_cast<std::size_t>(l)] = 1;
+            any = true;
+        }
+    }
+    if (!any)
+        return 0;
+    std::size_t dropped = 0;
+    for (int j = 0; j < lc.rows; ++j)
+        for (int i = 0; i < lc.cols; ++i)
+            if (drop[static_cast<std::size_t>(lc.at<int>(j, i))]) {
+                cur.at<uchar>(j, i) = 0;
+                ++dropped;
+            }
+    return dropped;
+}
+
 //! Keeps the 8-connected pieces of a one-slice mask that have at least min_pixels and either
 //! have at least `fraction` of the largest piece's pixels or lie along `rim` for at least
 //! `rim_fraction` of their border. A piece enclosed by edges and touching the rim only briefly is
@@ -472,6 +529,12 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         for (std::size_t i = 0; i < out.mask.data.size(); ++i)
             out.mask.data[i] = out.mask.data[i] && !excluded.data[i];
     out.report.area_mm2 = area_of(out.mask);
+    if (previous && p.drop_growing_pieces && out.report.area_mm2 < 0.9 * largest_area_mm2) {
+        // Past the widest slice the liver's cross-sections shrink (the dome and the tip are
+        // convex); a separate piece that grows is something carried along beside it.
+        out.report.grown_pieces_mm2 = double(drop_growing_pieces(out.mask, templ, p.piece_growth_limit)) * px;
+        out.report.area_mm2 = area_of(out.mask);
+    }
     if (previous && p.use_tissue_stop) {
         // The liver's parenchyma is homogeneous: a contour mostly outside its grey levels has
         // crossed into something else at the liver's end (bowel with gas and fat, a kidney).
@@ -526,6 +589,9 @@ void report(const Context& c, const LiverSliceReport& r)
       << (r.above_contact_mm2 > 0 ? ", " + std::to_string(static_cast<int>(std::lround(r.above_contact_mm2 / 100))) +
                                         " cm2 above a dome contact"
                                   : "")
+      << (r.grown_pieces_mm2 > 0 ? ", " + std::to_string(static_cast<int>(std::lround(r.grown_pieces_mm2 / 100))) +
+                                       " cm2 of separate pieces dropped (they grew past the widest slice)"
+                                 : "")
       << (r.not_liver ? ", " + std::to_string(static_cast<int>(std::lround(100 * r.outside_fraction))) +
                             " % outside the liver's grey levels: not liver, the liver ends here"
                       : "")
@@ -744,6 +810,9 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
             if (!std::isfinite(v) || v < 0)
                 throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
                                               std::to_string(v));
+    if (params.drop_growing_pieces && !(params.piece_growth_limit >= 1.0 && std::isfinite(params.piece_growth_limit)))
+        throw core::InvalidInputError("segment_liver: piece_growth_limit must be finite and >= 1, is " +
+                                      std::to_string(params.piece_growth_limit));
     if (params.use_tissue_stop && (!(params.tissue_stop_fraction > 0.0 && params.tissue_stop_fraction <= 1.0) ||
                                    !(params.tissue_stop_sigmas > 0.0) || !std::isfinite(params.tissue_stop_sigmas)))
         throw core::InvalidInputError(

@@ -28,7 +28,7 @@ struct LiverOptions {
     std::string modality = "auto";
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
-         envelope_stop = false, no_tissue_stop = false, no_edge_snap = false;
+         envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false;
     seg::LiverParams params;
 };
 
@@ -94,6 +94,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_dome_contact = !o.no_dome_contact;
     p.use_tissue_stop = !o.no_tissue_stop;
     p.use_edge_snap = !o.no_edge_snap;
+    p.drop_growing_pieces = !o.no_piece_growth;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
     p.mr.bias_correction = o.bias_field;
@@ -120,10 +121,12 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         throw core::InvalidInputError(o.image.string() + ": " + e.what());
     }
     int rejected = 0, recovered = 0, bounded = 0, above_contact = 0;
-    std::string not_liver;
+    std::string not_liver, grown;
     for (const auto& s : r.slices) {
         if (s.not_liver)
             not_liver += (not_liver.empty() ? "" : ",") + std::to_string(s.slice);
+        if (s.grown_pieces_mm2 > 0)
+            grown += (grown.empty() ? "" : ",") + std::to_string(s.slice);
         above_contact += s.above_contact_mm2 > 0;
         rejected += s.rejected;
         recovered += s.recovered;
@@ -155,17 +158,18 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_iteration_bound", std::to_string(bounded));
         param("result.slices_above_contact", std::to_string(above_contact));
         param("result.tissue_stop_slices", not_liver);
+        param("result.grown_piece_slices", grown);
         if (r.bias_corrected)
             param("result.bias_field.gain", fixed(r.bias_min_gain, 3) + " to " + fixed(r.bias_max_gain, 3));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
-        param("components", std::string(p.use_start_slice && ct ? "start-slice " : "") +
-                                (ct ? "" : "mr-contrast-map ") + (r.bias_corrected ? "bias-field " : "") +
-                                (p.use_kmeans ? "kmeans " : "") + (p.use_rib_cage && ct ? "rib-cage " : "") +
-                                (memory && p.use_shape_memory ? "shape-memory " : "") +
-                                (p.use_dome_contact ? "dome-contact " : "") +
-                                (p.use_tissue_stop ? "tissue-stop " : "") + (p.use_edge_snap ? "edge-snap " : "") +
-                                (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
-                                (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
+        param("components",
+              std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
+                  (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
+                  (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
+                  (p.use_dome_contact ? "dome-contact " : "") + (p.use_tissue_stop ? "tissue-stop " : "") +
+                  (p.use_edge_snap ? "edge-snap " : "") + (p.drop_growing_pieces ? "piece-growth " : "") +
+                  (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
+                  (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", source);
         h5.write_labels("liver", r.mask, {{1, "liver"}});
@@ -234,6 +238,12 @@ Command add_liver(CLI::App& lseg)
                     "liver's grey levels")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 1.0));
+    cmd->add_flag("--no-piece-growth", o->no_piece_growth,
+                  "Ablation: keep the separate pieces of a contour that grow past the liver's widest slice");
+    cmd->add_option("--piece-growth", o->params.piece_growth_limit,
+                    "Drop a separate piece past the widest slice whose area exceeds this many times its predecessors'")
+        ->capture_default_str()
+        ->check(CLI::Range(1.0, 100.0));
     cmd->add_flag("--no-edge-snap", o->no_edge_snap,
                   "Ablation: stack the snake's contours as they are, not moved on to the edge ridge");
     cmd->add_option("--snap-band", o->params.snap.band,

@@ -40,6 +40,8 @@ struct LiverSliceReport {
     double outside_fraction = 0;  //!< the contour's share outside the liver's grey levels
     bool not_liver = false;       //!< ... above LiverParams::tissue_stop_fraction: the slice is
                                   //!< dropped and the propagation in its direction ends
+    double grown_pieces_mm2 = 0;  //!< area of the separate pieces dropped because they grew
+                                  //!< (LiverParams::drop_growing_pieces)
     double seconds = 0;
 };
 
@@ -127,6 +129,14 @@ struct LiverParams {
     bool use_tissue_stop = true;
     double tissue_stop_fraction = 0.35;
     double tissue_stop_sigmas = 2.5;
+    //! Growing pieces: past the liver's widest slice (the slice's area below 0.9 of the largest so
+    //! far) its cross-sections shrink towards the dome and the tip, so a separate piece of the
+    //! contour (not the largest, and not touching the previous slice's largest piece) whose area
+    //! exceeds piece_growth_limit times that of the previous slice's pieces it overlaps is not
+    //! liver (the heart wall carried up beside the dome): it is dropped
+    //! (docs/algorithms/liver.md, "Growing pieces").
+    bool drop_growing_pieces = true;
+    double piece_growth_limit = 1.15;
     //! The edge snap: each slice's accepted contour is moved on to the edge ridge by a short
     //! pressure-free run (`snap_to_edges`) before it is stacked; the propagation goes on from the
     //! unsnapped contour. Without it CDSG leaves the contour 1-2 voxels inside the ridge
