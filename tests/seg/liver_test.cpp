@@ -335,14 +335,17 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
 // the contour crosses from the liver's tip into the right kidney (112 HU against the liver's 105)
 // and, without the stop, follows it down to the volume's first slice. Measured: truth's lowest
 // slice 11 (a sliver of the tip); with the stop the mask begins at slice 12 (the stop ends the
-// propagation at 11, where more than 35 % of the contour is kidney), Dice 0.918, RVD +5.1 %;
-// without it slice 0, Dice 0.901, RVD +9.9 %. Bounds: within two slices of the tip with the
-// stop, more than five below it without, and Dice not lower.
+// propagation at 11, where more than 35 % of the contour is kidney), Dice 0.919;
+// without it slice 0, Dice 0.901. Bounds: within two slices of the tip with the
+// stop, more than five below it without, and Dice not lower. The growing-pieces rule is off here:
+// on this phantom it drops the kidney's lineage too (LiverPipeline.GrowingPiecesAreDropped), and
+// the test is of the stop alone.
 TEST(LiverPipeline, TissueStopEndsAtTheLiversTip)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
     const int first = lowest_slice(c.truth);
     seg::LiverParams p;
+    p.drop_growing_pieces = false;
     const seg::LiverResult r = seg::segment_liver(c.hu, p);
     p.use_tissue_stop = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);
