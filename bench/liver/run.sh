@@ -45,6 +45,7 @@ variants=("full|--shape $work/shape.h5"
           "no dome contact|--shape $work/shape.h5 --no-dome-contact"
           "no tissue stop|--shape $work/shape.h5 --no-tissue-stop"
           "no edge snap|--shape $work/shape.h5 --no-edge-snap"
+          "no growing pieces|--shape $work/shape.h5 --no-piece-growth"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"
