@@ -400,6 +400,42 @@ core::LabelImage3D contact_sheet(const Context& c, core::LabelImage3D found)
     return found;
 }
 
+//! Vessel inlets (SLIVER07: vessels inside the liver are liver): on each slice of `mask`, the
+//! voxels that a closing with radius `r_mm` adds and whose smoothed grey level is at least `hi`
+//! (contrast-filled vessels), widened by one pixel within the closing for their partial-volume
+//! walls, are added. Returns the voxels added.
+std::size_t fill_vessel_inlets(const Context& c, core::LabelImage3D& mask, const std::vector<int>& slices, double r_mm,
+                               double hi)
+{
+    std::size_t added = 0;
+    const int rx = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[0])));
+    const int ry = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[1])));
+    const cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
+    for (int k : slices) {
+        core::LabelImage3D m = core::axial_slice(mask, k);
+        if (count(m) == 0)
+            continue;
+        const Window w = window_around(m, r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]));
+        core::LabelImage3D mw = crop(m, w);
+        const core::ImageF smooth = gaussian_smooth(crop(slice_image(c, k), w), 1.0);
+        cv::Mat in(mw.size[1], mw.size[0], CV_8U, mw.data.data());
+        cv::Mat closed, bright(in.size(), CV_8U, cv::Scalar(0));
+        cv::morphologyEx(in, closed, cv::MORPH_CLOSE, disc);
+        for (int j = 0; j < in.rows; ++j)
+            for (int i = 0; i < in.cols; ++i)
+                if (closed.at<uchar>(j, i) && !in.at<uchar>(j, i) && double(smooth.at(i, j, 0)) >= hi)
+                    bright.at<uchar>(j, i) = 1;
+        cv::dilate(bright, bright, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)));
+        for (int j = 0; j < in.rows; ++j)
+            for (int i = 0; i < in.cols; ++i)
+                if (bright.at<uchar>(j, i) && closed.at<uchar>(j, i) && !in.at<uchar>(j, i)) {
+                    mask.at(w.i0 + i, w.j0 + j, k) = 1;
+                    ++added;
+                }
+    }
+    return added;
+}
+
 //! Segments slice k from the previous slice's accepted mask, or from the seed (previous null).
 SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& start, const core::LabelImage3D* previous,
                            double largest_area_mm2, const core::LabelImage3D* above_contact = nullptr)
@@ -559,12 +595,15 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     if (p.use_edge_snap && !out.report.not_liver && out.report.area_mm2 >= p.min_area_mm2) {
         // Within the snake's window, on the image the snake saw (excluded organs are fat there).
         const Window sw = window_around(out.mask, p.window_margin_mm);
-        const SnakeResult s = snap_to_edges(crop(img, sw), crop(out.mask, sw), p.snake, p.snap);
-        out.snapped = core::LabelImage3D(g, 0);
-        paste(s.mask, sw, out.snapped);
-        if (!excluded.data.empty())
-            for (std::size_t i = 0; i < out.snapped.data.size(); ++i)
-                out.snapped.data[i] = out.snapped.data[i] && !excluded.data[i];
+        const core::LabelImage3D mask_sw = crop(out.mask, sw);
+        if (count(mask_sw) < mask_sw.data.size()) { // a contour filling its window has no edge to meet
+            const SnakeResult s = snap_to_edges(crop(img, sw), mask_sw, p.snake, p.snap);
+            out.snapped = core::LabelImage3D(g, 0);
+            paste(s.mask, sw, out.snapped);
+            if (!excluded.data.empty())
+                for (std::size_t i = 0; i < out.snapped.data.size(); ++i)
+                    out.snapped.data[i] = out.snapped.data[i] && !excluded.data[i];
+        }
     }
     out.report.seconds = seconds_since(t0);
     if (out.report.area_mm2 < p.min_area_mm2)
@@ -702,6 +741,18 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     place(first);
     for (const auto& s : up)
         place(s);
+    if (params.fill_vessel_inlets && params.post.convention == LiverConvention::Sliver07) {
+        // Contrast-filled vessels open to the liver's surface in a slice (hepatic veins running
+        // to the IVC, portal branches at the hilum) are inlets the contour leaves out and the
+        // 3-D pass's hole filling cannot reach.
+        const auto tv = Clock::now();
+        std::vector<int> ks;
+        for (const auto& s : result.slices)
+            ks.push_back(s.slice);
+        result.vessel_inlet_voxels = fill_vessel_inlets(cx, result.mask, ks, params.vessel_inlet_closing_mm,
+                                                        cx.band.mean + params.vessel_inlet_sigmas * cx.band.sigma);
+        result.timings.emplace_back("vessel inlets", seconds_since(tv));
+    }
     result.first_slice = result.slices.front().slice;
     result.last_slice = result.slices.back().slice;
     result.timings.emplace_back("propagate", seconds_since(t0));
@@ -810,6 +861,13 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
             if (!std::isfinite(v) || v < 0)
                 throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
                                               std::to_string(v));
+    if (params.fill_vessel_inlets &&
+        !(params.vessel_inlet_closing_mm > 0.0 && std::isfinite(params.vessel_inlet_closing_mm) &&
+          params.vessel_inlet_sigmas >= 0.0 && std::isfinite(params.vessel_inlet_sigmas)))
+        throw core::InvalidInputError("segment_liver: vessel_inlet_closing_mm must be finite and > 0 and "
+                                      "vessel_inlet_sigmas finite and >= 0 (are " +
+                                      std::to_string(params.vessel_inlet_closing_mm) + ", " +
+                                      std::to_string(params.vessel_inlet_sigmas) + ")");
     if (params.drop_growing_pieces && !(params.piece_growth_limit >= 1.0 && std::isfinite(params.piece_growth_limit)))
         throw core::InvalidInputError("segment_liver: piece_growth_limit must be finite and >= 1, is " +
                                       std::to_string(params.piece_growth_limit));

@@ -59,6 +59,7 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_NE(parameter(prov.back(), "components").find("tissue-stop"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("edge-snap"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("piece-growth"), std::string::npos);
+    EXPECT_NE(parameter(prov.back(), "components").find("vessel-inlets"), std::string::npos);
     EXPECT_FALSE(parameter(prov.back(), "result.slices_above_contact").empty());
     bool timed = false;
     for (const auto& [name, seconds] : prov.back().timings)

@@ -28,7 +28,8 @@ struct LiverOptions {
     std::string modality = "auto";
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
-         envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false;
+         envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
+         no_vessel_inlets = false;
     seg::LiverParams params;
 };
 
@@ -95,6 +96,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_tissue_stop = !o.no_tissue_stop;
     p.use_edge_snap = !o.no_edge_snap;
     p.drop_growing_pieces = !o.no_piece_growth;
+    p.fill_vessel_inlets = !o.no_vessel_inlets;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
     p.mr.bias_correction = o.bias_field;
@@ -159,17 +161,20 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_above_contact", std::to_string(above_contact));
         param("result.tissue_stop_slices", not_liver);
         param("result.grown_piece_slices", grown);
+        param("result.vessel_inlet_voxels", std::to_string(r.vessel_inlet_voxels));
         if (r.bias_corrected)
             param("result.bias_field.gain", fixed(r.bias_min_gain, 3) + " to " + fixed(r.bias_max_gain, 3));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
-        param("components",
-              std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
-                  (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
-                  (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
-                  (p.use_dome_contact ? "dome-contact " : "") + (p.use_tissue_stop ? "tissue-stop " : "") +
-                  (p.use_edge_snap ? "edge-snap " : "") + (p.drop_growing_pieces ? "piece-growth " : "") +
-                  (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
-                  (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
+        param(
+            "components",
+            std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
+                (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
+                (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
+                (p.use_dome_contact ? "dome-contact " : "") + (p.use_tissue_stop ? "tissue-stop " : "") +
+                (p.use_edge_snap ? "edge-snap " : "") + (p.drop_growing_pieces ? "piece-growth " : "") +
+                (p.fill_vessel_inlets && p.post.convention == seg::LiverConvention::Sliver07 ? "vessel-inlets " : "") +
+                (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
+                (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", source);
         h5.write_labels("liver", r.mask, {{1, "liver"}});
@@ -238,6 +243,13 @@ Command add_liver(CLI::App& lseg)
                     "liver's grey levels")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 1.0));
+    cmd->add_flag("--no-vessel-inlets", o->no_vessel_inlets,
+                  "Ablation: do not add the contrast-filled vessels open to the liver's surface in a slice (SLIVER07 "
+                  "convention only)");
+    cmd->add_option("--vessel-inlet-closing", o->params.vessel_inlet_closing_mm,
+                    "Vessel inlets: radius of the per-slice closing that bridges their mouths [mm]")
+        ->capture_default_str()
+        ->check(CLI::Range(0.1, 50.0));
     cmd->add_flag("--no-piece-growth", o->no_piece_growth,
                   "Ablation: keep the separate pieces of a contour that grow past the liver's widest slice");
     cmd->add_option("--piece-growth", o->params.piece_growth_limit,

@@ -129,6 +129,14 @@ struct LiverParams {
     bool use_tissue_stop = true;
     double tissue_stop_fraction = 0.35;
     double tissue_stop_sigmas = 2.5;
+    //! Vessel inlets (SLIVER07 convention only): after the propagation, on each slice, the voxels
+    //! a closing of the contour with radius vessel_inlet_closing_mm adds and whose grey level
+    //! (smoothed, sigma 1 mm) lies above the liver's band by more than vessel_inlet_sigmas sd are
+    //! contrast-filled vessels open to the surface in that slice (hepatic veins running to the
+    //! IVC): they are liver (docs/algorithms/liver.md, "Vessel inlets").
+    bool fill_vessel_inlets = true;
+    double vessel_inlet_closing_mm = 7.0;
+    double vessel_inlet_sigmas = 2.5;
     //! Growing pieces: past the liver's widest slice (the slice's area below 0.9 of the largest so
     //! far) its cross-sections shrink towards the dome and the tip, so a separate piece of the
     //! contour (not the largest, and not touching the previous slice's largest piece) whose area
@@ -204,6 +212,7 @@ struct LiverResult {
     int first_slice = -1;           //!< lowest k with liver
     int last_slice = -1;            //!< highest k with liver
     double volume_ml = 0;
+    std::size_t vessel_inlet_voxels = 0;  //!< voxels added by LiverParams::fill_vessel_inlets
     std::vector<LiverSliceReport> slices; //!< one per segmented slice, ascending k
     std::vector<std::pair<std::string, double>> timings; //!< seconds per stage
 };
