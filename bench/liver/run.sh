@@ -46,6 +46,7 @@ variants=("full|--shape $work/shape.h5"
           "no tissue stop|--shape $work/shape.h5 --no-tissue-stop"
           "no edge snap|--shape $work/shape.h5 --no-edge-snap"
           "no growing pieces|--shape $work/shape.h5 --no-piece-growth"
+          "no vessel inlets|--shape $work/shape.h5 --no-vessel-inlets"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"

@@ -411,7 +411,10 @@ std::size_t fill_vessel_inlets(const Context& c, core::LabelImage3D& mask, const
     const int rx = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[0])));
     const int ry = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[1])));
     const cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
-    for (int k : slices) {
+    // Slices are independent (each writes its own plane of `mask`).
+#pragma omp parallel for schedule(dynamic) reduction(+ : added)
+    for (std::size_t n = 0; n < slices.size(); ++n) {
+        const int k = slices[n];
         core::LabelImage3D m = core::axial_slice(mask, k);
         if (count(m) == 0)
             continue;
