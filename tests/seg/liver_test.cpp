@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <array>
+#include <initializer_list>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -58,6 +59,16 @@ int lowest_slice(const core::LabelImage3D& truth)
             return k;
     }
     return truth.size[2];
+}
+
+// Voxels of the mask `m` whose phantom label is one of `which`.
+std::size_t voxels_on(const core::LabelImage3D& m, const core::LabelImage3D& labels,
+                      std::initializer_list<std::uint8_t> which)
+{
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        n += m.data[i] && std::find(which.begin(), which.end(), labels.data[i]) != which.end();
+    return n;
 }
 
 double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth_slice)
@@ -147,10 +158,7 @@ TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
     const seg::LiverResult with = seg::segment_liver(c.hu);
     const seg::LiverResult without = seg::segment_liver(c.hu, off);
     auto heart = [&](const core::LabelImage3D& m) {
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < m.data.size(); ++i)
-            n += m.data[i] && (c.labels.data[i] == phantom::kHeart || c.labels.data[i] == phantom::kHeartBlood);
-        return n;
+        return voxels_on(m, c.labels, {phantom::kHeart, phantom::kHeartBlood});
     };
     const double d_on = seg::evaluate_segmentation(with.mask, c.truth).dice;
     const double d_off = seg::evaluate_segmentation(without.mask, c.truth).dice;
@@ -316,12 +324,7 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
         acted += s.grown_pieces_mm2 > 0;
     for (const auto& s : off.slices)
         EXPECT_EQ(s.grown_pieces_mm2, 0.0);
-    const auto kidney = [&](const core::LabelImage3D& m) {
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < m.data.size(); ++i)
-            n += m.data[i] && c.labels.data[i] == phantom::kRightKidney;
-        return n;
-    };
+    const auto kidney = [&](const core::LabelImage3D& m) { return voxels_on(m, c.labels, {phantom::kRightKidney}); };
     std::cerr << "growing pieces: voxels outside the truth " << outside(off.mask) << " -> " << outside(on.mask)
               << " (right kidney " << kidney(off.mask) << " -> " << kidney(on.mask) << "), Dice " << m_off.dice
               << " -> " << m_on.dice << ", acted on " << acted << " slices\n";
@@ -350,12 +353,8 @@ TEST(LiverPipeline, VesselInletsAreFilled)
     p.fill_vessel_inlets = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);
     const auto share = [&](const core::LabelImage3D& m, std::uint8_t label) {
-        std::size_t in = 0, all = 0;
-        for (std::size_t i = 0; i < m.data.size(); ++i)
-            if (c.labels.data[i] == label) {
-                ++all;
-                in += m.data[i] != 0;
-            }
+        const std::size_t in = voxels_on(m, c.labels, {label});
+        const std::size_t all = static_cast<std::size_t>(std::count(c.labels.data.begin(), c.labels.data.end(), label));
         return std::pair<std::size_t, double>{in, all ? double(in) / double(all) : 0.0};
     };
     const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
