@@ -376,6 +376,9 @@ TEST(LiverPipeline, VesselInletsAreFilled)
     p.fill_vessel_inlets = true;
     p.post.convention = seg::LiverConvention::Parenchyma;
     EXPECT_EQ(seg::segment_liver(c.hu, p).vessel_inlet_voxels, 0u);
+    p.post.convention = seg::LiverConvention::Sliver07;
+    p.vessel_inlet_closing_mm = 0.0;
+    EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError) << "no closing radius";
 }
 
 // The tissue stop (LiverParams::use_tissue_stop) at the liver's lower tip: on this phantom (1.0 x

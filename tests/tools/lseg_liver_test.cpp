@@ -119,6 +119,15 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_EQ(r.exit_code, 1) << r.err; // a bad command line: the map needs a positive scale
     EXPECT_NE(r.err.find("--mr-noise"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "g.h5"));
+
+    // The settings of the edge snap, growing pieces and vessel inlets: out of range is a bad command line.
+    for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--vessel-inlet-closing 0"}) {
+        r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "h.h5") + " " + bad, dir);
+        EXPECT_EQ(r.exit_code, 1) << bad << ": " << r.err;
+        const std::string option = std::string(bad).substr(0, std::string(bad).find(' '));
+        EXPECT_NE(r.err.find(option), std::string::npos) << r.err;
+        EXPECT_FALSE(fs::exists(dir / "h.h5"));
+    }
 }
 
 // The real MR at hand (../shared/data/mr-small: T1, 117 x 91 x 20, 3 mm; its reference is
