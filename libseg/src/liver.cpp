@@ -756,6 +756,18 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
                                                         cx.band.mean + params.vessel_inlet_sigmas * cx.band.sigma);
         result.timings.emplace_back("vessel inlets", seconds_since(tv));
     }
+    if (params.trim_dark_rim) {
+        // The contour's rim may hold a layer of darker tissue that it crossed at a weak edge
+        // (the diaphragm between the liver and the ribs): dropped before the 3-D pass.
+        const auto td = Clock::now();
+        DarkRimResult rim = trim_dark_rim(hu, result.mask, cx.band.mean,
+                                          cx.band.mean - params.tissue_stop_sigmas * cx.band.sigma, params.dark_rim);
+        result.mask = std::move(rim.mask);
+        result.dark_rim_voxels = rim.removed;
+        result.dark_rim_level = rim.level;
+        result.dark_rim_neighbour = rim.neighbour;
+        result.timings.emplace_back("dark rim", seconds_since(td));
+    }
     result.first_slice = result.slices.front().slice;
     result.last_slice = result.slices.back().slice;
     result.timings.emplace_back("propagate", seconds_since(t0));

@@ -29,7 +29,7 @@ struct LiverOptions {
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
-         no_vessel_inlets = false;
+         no_vessel_inlets = false, no_dark_rim = false;
     seg::LiverParams params;
 };
 
@@ -97,6 +97,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_edge_snap = !o.no_edge_snap;
     p.drop_growing_pieces = !o.no_piece_growth;
     p.fill_vessel_inlets = !o.no_vessel_inlets;
+    p.trim_dark_rim = !o.no_dark_rim;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
     p.mr.bias_correction = o.bias_field;
@@ -162,6 +163,9 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.tissue_stop_slices", not_liver);
         param("result.grown_piece_slices", grown);
         param("result.vessel_inlet_voxels", std::to_string(r.vessel_inlet_voxels));
+        param("result.dark_rim_voxels", std::to_string(r.dark_rim_voxels));
+        param("result.dark_rim_level", fixed(r.dark_rim_level, 1));
+        param("result.dark_rim_neighbour", fixed(r.dark_rim_neighbour, 1));
         if (r.bias_corrected)
             param("result.bias_field.gain", fixed(r.bias_min_gain, 3) + " to " + fixed(r.bias_max_gain, 3));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
@@ -172,6 +176,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                 (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
                 (p.use_dome_contact ? "dome-contact " : "") + (p.use_tissue_stop ? "tissue-stop " : "") +
                 (p.use_edge_snap ? "edge-snap " : "") + (p.drop_growing_pieces ? "piece-growth " : "") +
+                (p.trim_dark_rim ? "dark-rim " : "") +
                 (p.fill_vessel_inlets && p.post.convention == seg::LiverConvention::Sliver07 ? "vessel-inlets " : "") +
                 (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                 (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
@@ -250,6 +255,14 @@ Command add_liver(CLI::App& lseg)
                     "Vessel inlets: radius of the per-slice closing that bridges their mouths [mm]")
         ->capture_default_str()
         ->check(CLI::Range(0.1, 50.0));
+    cmd->add_flag("--no-dark-rim", o->no_dark_rim,
+                  "Ablation: keep the layers of darker tissue along the contour's rim (the diaphragm between the "
+                  "liver and the ribs)");
+    cmd->add_option("--dark-rim-level", o->params.dark_rim.level,
+                    "Dark rim: drop rim voxels darker than this fraction of the way from the liver's grey level down "
+                    "to the darker tissue outside the contour")
+        ->capture_default_str()
+        ->check(CLI::Range(0.05, 1.0));
     cmd->add_flag("--no-piece-growth", o->no_piece_growth,
                   "Ablation: keep the separate pieces of a contour that grow past the liver's widest slice");
     cmd->add_option("--piece-growth", o->params.piece_growth_limit,

@@ -10,6 +10,7 @@
 
 #include "lobe/core/image3d.h"
 #include "lobe/seg/bias_field.h"
+#include "lobe/seg/dark_rim.h"
 #include "lobe/seg/kmeans.h"
 #include "lobe/seg/postprocess.h"
 #include "lobe/seg/rib_cage.h"
@@ -137,6 +138,12 @@ struct LiverParams {
     bool fill_vessel_inlets = true;
     double vessel_inlet_closing_mm = 7.0;
     double vessel_inlet_sigmas = 2.5;
+    //! The dark rim: after the propagation, the layers of darker tissue the contours hold along
+    //! their rim (the diaphragm and intercostal muscle between the liver and the ribs, crossed at
+    //! a weak edge and carried from slice to slice) are dropped by `trim_dark_rim`, with the
+    //! tissue stop's band as the liver's grey level (docs/algorithms/liver.md, "The dark rim").
+    bool trim_dark_rim = true;
+    DarkRimParams dark_rim;
     //! Growing pieces: past the liver's widest slice (the slice's area below 0.9 of the largest so
     //! far) its cross-sections shrink towards the dome and the tip, so a separate piece of the
     //! contour (not the largest, and not touching the previous slice's largest piece) whose area
@@ -213,6 +220,9 @@ struct LiverResult {
     int last_slice = -1;            //!< highest k with liver
     double volume_ml = 0;
     std::size_t vessel_inlet_voxels = 0;  //!< voxels added by LiverParams::fill_vessel_inlets
+    std::size_t dark_rim_voxels = 0;      //!< voxels dropped by LiverParams::trim_dark_rim
+    double dark_rim_level = 0;            //!< ... below this smoothed grey level (0: not applied)
+    double dark_rim_neighbour = 0;        //!< ... set from this median of the darker tissue outside
     std::vector<LiverSliceReport> slices; //!< one per segmented slice, ascending k
     std::vector<std::pair<std::string, double>> timings; //!< seconds per stage
 };
