@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,50 @@ struct SliceWork {
     core::LabelImage3D mask;
     core::ImageF grey;
 };
+
+cv::Mat as_mat(core::LabelImage3D& m)
+{
+    return cv::Mat(m.size[1], m.size[0], CV_8U, m.data.data());
+}
+
+//! Keeps the 8-connected pieces of the one-slice mask `m` whose depth (the largest distance
+//! from one of its pixels to the outside of the piece) exceeds depth_mm.
+void keep_bodies(core::LabelImage3D& m, double depth_mm)
+{
+    core::LabelImage3D outside(m.geometry(), 0);
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        outside.data[i] = !m.data[i];
+    const core::ImageF depth = euclidean_distance(outside);
+    cv::Mat bin(m.size[1], m.size[0], CV_8U, m.data.data()), labels;
+    const int n = cv::connectedComponents(bin, labels, 8, CV_32S);
+    std::vector<float> deepest(static_cast<std::size_t>(n), 0.f);
+    for (std::size_t i = 0; i < m.data.size(); ++i) {
+        const auto l = static_cast<std::size_t>(labels.ptr<int>(0)[i]);
+        deepest[l] = std::max(deepest[l], depth.data[i]);
+    }
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        m.data[i] = m.data[i] && double(deepest[static_cast<std::size_t>(labels.ptr<int>(0)[i])]) > depth_mm ? 1 : 0;
+}
+
+//! Clears from `after` (the one-slice mask `before` less what was trimmed) its 8-connected pieces
+//! that hold no pixel of `body` but were part of a piece of `before` that did.
+void drop_cut_off(const core::LabelImage3D& before, core::LabelImage3D& after, const core::LabelImage3D& body)
+{
+    cv::Mat b(before.size[1], before.size[0], CV_8U, const_cast<std::uint8_t*>(before.data.data()));
+    cv::Mat a(after.size[1], after.size[0], CV_8U, after.data.data());
+    cv::Mat lb, la;
+    const int nb = cv::connectedComponents(b, lb, 8, CV_32S), na = cv::connectedComponents(a, la, 8, CV_32S);
+    std::vector<char> b_body(static_cast<std::size_t>(nb), 0), a_body(static_cast<std::size_t>(na), 0);
+    for (std::size_t i = 0; i < body.data.size(); ++i)
+        if (body.data[i]) {
+            b_body[static_cast<std::size_t>(lb.ptr<int>(0)[i])] = 1;
+            a_body[static_cast<std::size_t>(la.ptr<int>(0)[i])] = 1;
+        }
+    for (std::size_t i = 0; i < after.data.size(); ++i)
+        if (after.data[i] && !a_body[static_cast<std::size_t>(la.ptr<int>(0)[i])] &&
+            b_body[static_cast<std::size_t>(lb.ptr<int>(0)[i])])
+            after.data[i] = 0;
+}
 
 } // namespace
 
@@ -47,8 +92,8 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
         r.mask.data[i] = mask.data[i] ? 1 : 0;
     const int nz = mask.size[2];
     const double h = std::max(mask.spacing[0], mask.spacing[1]);
-    const double ring_mm = params.ring_voxels * h * (1.0 + 1e-6);
-    const double touching = std::hypot(mask.spacing[0], mask.spacing[1]) * (1.0 + 1e-6); // a diagonal neighbour
+    const cv::Mat ring_disc =
+        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * params.ring_voxels + 1, 2 * params.ring_voxels + 1));
     const std::array<int, 3> margin{params.ring_voxels + 2, params.ring_voxels + 2, 0};
 
     // Pass 1: each slice's window, its smoothed grey levels, and the darker tissue in its ring.
@@ -64,10 +109,11 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
         w.box = detail::grown(b, margin, m.geometry());
         w.mask = detail::crop(m, w.box);
         w.grey = gaussian_smooth(detail::crop(core::axial_slice(image, k), w.box), params.smoothing_mm);
-        const core::ImageF from_mask = euclidean_distance(w.mask);
+        cv::Mat ring;
+        cv::dilate(as_mat(w.mask), ring, ring_disc);
         auto& d = darker[static_cast<std::size_t>(k)];
         for (std::size_t i = 0; i < w.mask.data.size(); ++i)
-            if (!w.mask.data[i] && double(from_mask.data[i]) <= ring_mm && double(w.grey.data[i]) < low)
+            if (!w.mask.data[i] && ring.data[i] && double(w.grey.data[i]) < low)
                 d.push_back(w.grey.data[i]);
     }
     std::vector<float> all;
@@ -93,14 +139,22 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
             rest.data[i] = m.data[i] && !dark.data[i];
             not_dark.data[i] = !dark.data[i];
         }
-        if (std::find(dark.data.begin(), dark.data.end(), 1) == dark.data.end() ||
-            std::find(rest.data.begin(), rest.data.end(), 1) == rest.data.end())
+        if (std::find(dark.data.begin(), dark.data.end(), 1) == dark.data.end())
             continue;
-        const core::ImageF from_rest = euclidean_distance(rest);
-        const core::ImageF depth = euclidean_distance(not_dark); // half the dark layer's thickness
+        // The object's body: the pieces of the rest that are more than a sliver. The partial
+        // volume between a dark layer and a bright neighbour (the rib) is as bright as the object
+        // but one or two pixels thin, and must not make the layer next to it "touch the object".
+        keep_bodies(rest, params.body_depth_voxels * h);
+        if (std::find(rest.data.begin(), rest.data.end(), 1) == rest.data.end())
+            continue;
+        cv::Mat near_rest; // the body and its 8 neighbours: what touches the object is kept
+        cv::dilate(as_mat(rest), near_rest, cv::Mat::ones(3, 3, CV_8U));
         cv::Mat cand(m.size[1], m.size[0], CV_8U, cv::Scalar(0));
         for (std::size_t i = 0; i < m.data.size(); ++i)
-            cand.data[i] = dark.data[i] && double(from_rest.data[i]) > touching ? 1 : 0;
+            cand.data[i] = dark.data[i] && !near_rest.data[i] ? 1 : 0;
+        if (cv::countNonZero(cand) == 0)
+            continue;
+        const core::ImageF depth = euclidean_distance(not_dark); // half the dark layer's thickness
         cv::Mat labels;
         const int n = cv::connectedComponents(cand, labels, 8, CV_32S);
         if (n <= 1)
@@ -117,15 +171,22 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
                 reaches[l] = reaches[l] || i == 0 || j == 0 || i + 1 == nx || j + 1 == ny || !m.at(i - 1, j, 0) ||
                              !m.at(i + 1, j, 0) || !m.at(i, j - 1, 0) || !m.at(i, j + 1, 0);
             }
+        core::LabelImage3D after = m;
+        for (std::size_t i = 0; i < m.data.size(); ++i) {
+            const auto l = static_cast<std::size_t>(labels.ptr<int>(0)[i]);
+            if (l && reaches[l] && double(deepest[l]) <= params.max_half_thickness_mm)
+                after.data[i] = 0;
+        }
+        // What the trim cut off from the body goes with it (the sliver along the rib); pieces that
+        // were apart from the body before stay as they were.
+        drop_cut_off(m, after, rest);
         std::size_t here = 0;
         for (int j = 0; j < ny; ++j)
-            for (int i = 0; i < nx; ++i) {
-                const auto l = static_cast<std::size_t>(labels.at<int>(j, i));
-                if (l && reaches[l] && double(deepest[l]) <= params.max_half_thickness_mm) {
+            for (int i = 0; i < nx; ++i)
+                if (m.at(i, j, 0) && !after.at(i, j, 0)) {
                     r.mask.at(w.box.lo[0] + i, w.box.lo[1] + j, k) = 0;
                     ++here;
                 }
-            }
         removed += here;
     }
     r.removed = removed;

@@ -767,6 +767,14 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         result.dark_rim_level = rim.level;
         result.dark_rim_neighbour = rim.neighbour;
         result.timings.emplace_back("dark rim", seconds_since(td));
+        if (c.progress && rim.applied) {
+            std::ostringstream m;
+            m.precision(3);
+            m << "dark rim: " << rim.removed << " voxels darker than " << rim.level
+              << " along the contour's rim dropped (liver " << cx.band.mean << ", darker tissue outside "
+              << rim.neighbour << "), " << seconds_since(td) << " s";
+            c.progress(m.str());
+        }
     }
     result.first_slice = result.slices.front().slice;
     result.last_slice = result.slices.back().slice;

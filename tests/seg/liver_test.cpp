@@ -85,7 +85,7 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 } // namespace
 
 // 1.4 x 1.4 x 5 mm, noise seed 3: coarse slices make the heart and kidney contacts blurrier.
-// Measured: Dice 0.875, ASD 3.7 mm, RVD +18.0 % (0.848, 5.3 mm and +28.5 % before the edge snap,
+// Measured: Dice 0.876, ASD 3.7 mm, RVD +17.6 % (0.875 and +18.0 % before the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap,
 // growing pieces and vessel inlets; the kidney under the liver leaks in; the heart above the dome
 // did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
 TEST(LiverPipeline, CoarsePhantomIsFound)
@@ -147,7 +147,7 @@ TEST(LiverPipeline, PropagationFromAKnownSeed)
 // The dome contact (docs/algorithms/liver.md, "The dome contact") on a phantom that neither it
 // nor the pipeline was tuned on (1.0 x 1.0 x 2.5 mm, noise seed 11). Without it the propagation
 // takes the heart wall over the dome; with it the columns above the diaphragm's z-valley are
-// closed. Measured: 47 226 heart voxels (wall and blood) in the mask without, 5 887 with (-88 %);
+// closed. Measured: 47 226 heart voxels (wall and blood) in the mask without, 5 889 with (-88 %);
 // Dice 0.904 -> 0.936 (before the edge snap, growing pieces and vessel inlets: 45 725 -> 7 197,
 // 0.885 -> 0.914). The bounds ask for half of each gain.
 TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
@@ -264,8 +264,8 @@ TEST(LiverPipeline, StopsAtTheLiversTip)
 // with the contour short of the edge, and the truth's outermost ring is missed. On this phantom
 // (0.8 x 0.8 x 2.5 mm, seed 13) with the 3-D pass off, so that the stacked contours are measured:
 // the share of the truth's voxels that lie just outside the mask (4-neighbours in the slice of a
-// mask voxel), and Dice and ASD. Measured: missed rim 2.3 % -> 1.2 %, Dice 0.949 -> 0.959, ASD 1.82
-// -> 1.62 mm (with the vessel inlets; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm). Bounds: the rim
+// mask voxel), and Dice and ASD. Measured: missed rim 2.4 % -> 1.2 %, Dice 0.950 -> 0.960, ASD 1.79
+// -> 1.61 mm (with the vessel inlets and the dark rim; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm). Bounds: the rim
 // down by a quarter, about half the Dice gain, ASD not worse.
 TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
 {
@@ -302,8 +302,8 @@ TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
 // piece of the contour that grows from one slice to the next is not liver. On this phantom (1.0 x
 // 1.0 x 3 mm, seed 4; the limit was chosen on others, liver.md) the rule acts on two slices and
 // the piece it drops at the lower one is the right kidney under the liver's tip, carried down
-// from there. Measured: voxels outside the truth 57 970 -> 51 021, right kidney 6 857 fewer,
-// Dice 0.921 -> 0.928. Bounds: half of each gain.
+// from there. Measured: voxels outside the truth 57 284 -> 50 309, right kidney 6 860 fewer,
+// Dice 0.922 -> 0.929 (57 970 -> 51 021, 6 857 and 0.921 -> 0.928 before the dark rim). Bounds: half of each gain.
 TEST(LiverPipeline, GrowingPiecesAreDropped)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
@@ -342,8 +342,8 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
 // out and the 3-D pass's hole filling cannot reach; the SLIVER07 truth counts them as liver. On
 // this phantom (0.8 x 0.8 x 2.5 mm, seed 13; the radius and level were not chosen on it): the
 // share of the hepatic veins in the mask, the IVC voxels (not liver) it takes, the maximum
-// surface distance and Dice. Measured: veins 0.52 -> 0.80, IVC 1 438 -> 2 665 voxels (5 % of
-// it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.956 -> 0.962. Bounds:
+// surface distance and Dice. Measured: veins 0.52 -> 0.80, IVC 1 436 -> 2 665 voxels (5 % of
+// it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.957 -> 0.962. Bounds:
 // half of each gain, and the IVC under a tenth.
 TEST(LiverPipeline, VesselInletsAreFilled)
 {

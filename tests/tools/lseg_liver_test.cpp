@@ -60,6 +60,8 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_NE(parameter(prov.back(), "components").find("edge-snap"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("piece-growth"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("vessel-inlets"), std::string::npos);
+    EXPECT_NE(parameter(prov.back(), "components").find("dark-rim"), std::string::npos);
+    EXPECT_FALSE(parameter(prov.back(), "result.dark_rim_voxels").empty());
     EXPECT_FALSE(parameter(prov.back(), "result.slices_above_contact").empty());
     bool timed = false;
     for (const auto& [name, seconds] : prov.back().timings)
@@ -120,8 +122,9 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_NE(r.err.find("--mr-noise"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "g.h5"));
 
-    // The settings of the edge snap, growing pieces and vessel inlets: out of range is a bad command line.
-    for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--vessel-inlet-closing 0"}) {
+    // The settings of the edge snap, growing pieces, vessel inlets and dark rim: out of range is a bad command line.
+    for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--vessel-inlet-closing 0",
+                            "--dark-rim-level 0", "--dark-rim-level 1.5"}) {
         r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "h.h5") + " " + bad, dir);
         EXPECT_EQ(r.exit_code, 1) << bad << ": " << r.err;
         const std::string option = std::string(bad).substr(0, std::string(bad).find(' '));
@@ -167,4 +170,52 @@ TEST(LsegLiver, SegmentsTheRealMrAsMr)
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_NE(r.err.find("no liver found"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "as-ct.h5"));
+}
+
+// The real contrast CT at hand (../shared/data/ct-dicom-jpeg2000: 512 x 512 x 20, 0.98 x 0.98 x
+// 2 mm; its reference is TotalSegmentator's liver): every slice's contour holds a layer of the
+// diaphragm and intercostal muscle (about 40 HU against the liver's 96) between the liver and the
+// ribs, which the dark rim drops. Measured (no shape memory): SLIVER07 score 71.3 -> 75.8, 7 400
+// voxels dropped, 91 % of the voxels the final masks differ by outside the reference. Bounds: a gain of
+// at least 2 points and a score of at least 74, a fifth of the drop and 80 % outside.
+TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
+{
+    const fs::path ct = test::data_dir() / "ct-dicom-jpeg2000";
+    LOBE_REQUIRE_PATH(ct / "dicom");
+    const auto dir = test::scratch_dir();
+    const auto score = [&](const fs::path& h5) {
+        const auto r = run_lseg("eval " + q(h5) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        const auto at = r.out.find("\"total\""); // the overall SLIVER07 score
+        return at == std::string::npos ? -1.0 : std::stod(r.out.substr(r.out.find(':', at) + 1));
+    };
+    auto r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "on.h5") + " --mask " + q(dir / "on.mhd"), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("dark rim: "), std::string::npos) << r.err;
+    r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "off.h5") + " --mask " + q(dir / "off.mhd") +
+                     " --no-dark-rim --quiet",
+                 dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const double on = score(dir / "on.h5"), off = score(dir / "off.h5");
+    const auto prov = io::Hdf5Reader(dir / "on.h5").provenance();
+    ASSERT_FALSE(prov.empty());
+    const double dropped = std::stod(parameter(prov.back(), "result.dark_rim_voxels"));
+    const auto mask_on = io::read_image(dir / "on.mhd"), mask_off = io::read_image(dir / "off.mhd"),
+               ref = io::read_image(ct / "liver.mhd");
+    const auto& a = std::get<core::LabelImage3D>(mask_on).data;
+    const auto& b = std::get<core::LabelImage3D>(mask_off).data;
+    const auto& truth = std::get<core::LabelImage3D>(ref).data;
+    std::size_t removed = 0, outside = 0;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        if (b[i] && !a[i]) {
+            ++removed;
+            outside += truth[i] == 0;
+        }
+    std::cerr << "ct-dicom: score " << off << " -> " << on << ", dark rim " << dropped << " voxels, final masks differ by "
+              << removed << " voxels, " << double(outside) / double(std::max<std::size_t>(removed, 1))
+              << " of them outside the reference\n";
+    EXPECT_GE(on, off + 2.0);
+    EXPECT_GE(on, 74.0);
+    EXPECT_GE(dropped, 1500.0);
+    EXPECT_GE(double(outside), 0.8 * double(removed));
 }

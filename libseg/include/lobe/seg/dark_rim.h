@@ -21,6 +21,9 @@ struct DarkRimParams {
     double max_half_thickness_mm = 5.0; //!< thicker dark pieces are kept: a lesion of 1 cm or more
                              //!< at the surface (liver under SLIVER07) is not a layer of muscle
     double smoothing_mm = 1.0; //!< Gaussian sigma of the grey levels, in plane (as the snakes see them)
+    double body_depth_voxels = 2.0; //!< the object's body in a slice: its non-dark pieces reaching
+                             //!< more than this many pixels from their edge (not the thin partial-
+                             //!< volume sliver between a dark layer and a bright rib)
 };
 
 //! What `trim_dark_rim` returns.
