@@ -85,7 +85,7 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 } // namespace
 
 // 1.4 x 1.4 x 5 mm, noise seed 3: coarse slices make the heart and kidney contacts blurrier.
-// Measured: Dice 0.876, ASD 3.7 mm, RVD +17.6 % (0.875 and +18.0 % before the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap,
+// Measured: Dice 0.876, ASD 3.7 mm, RVD +17.6 %, SLIVER07 score 19.2 (0.875 and +18.0 % before the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap,
 // growing pieces and vessel inlets; the kidney under the liver leaks in; the heart above the dome
 // did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
 TEST(LiverPipeline, CoarsePhantomIsFound)
@@ -97,24 +97,35 @@ TEST(LiverPipeline, CoarsePhantomIsFound)
     EXPECT_GE(precision_in(r.seed.mask, core::axial_slice(c.truth, r.seed.slice)), 0.99);
     EXPECT_TRUE(r.start.found) << r.start.message;
     const auto m = seg::evaluate_segmentation(r.mask, c.truth);
-    std::cerr << "coarse phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd << " %\n";
+    const double score = seg::sliver_score(m).total;
+    std::cerr << "coarse phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd
+              << " %, SLIVER07 score " << score << "\n";
     EXPECT_GE(m.dice, 0.82);
     EXPECT_LE(m.surface.average, 6.5);
     EXPECT_LE(std::abs(m.rvd), 50.0);
+    // The score is low at 5 mm slices (the kidney's volume and distance errors); a bound under
+    // the measured 19.2, which the heart leak of before the dome contact (Dice 0.82) falls below.
+    // Scores move by several points when a build changes one slice's outcome (liver.md), hence
+    // the margin.
+    EXPECT_GE(score, 10.0);
     // The propagation stops below the start slice (the heart/lung slice).
     EXPECT_LT(r.last_slice, r.start.slice);
 }
 
-// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.946, ASD 1.5 mm (0.908 and 3.9 mm before the
-// edge snap, growing pieces and vessel inlets; 0.875 and 4.9 mm before the dome contact).
+// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.946, ASD 1.5 mm, SLIVER07 score 66.4 (0.908
+// and 3.9 mm before the edge snap, growing pieces and vessel inlets; 0.875 and 4.9 mm before the
+// dome contact). The score's bound is ten points under the measured one (see the test above).
 TEST(LiverPipeline, FinePhantomIsFound)
 {
     const Case c = phantom_case({0.9, 0.9, 3.0}, 5);
     const seg::LiverResult r = seg::segment_liver(c.hu);
     const auto m = seg::evaluate_segmentation(r.mask, c.truth);
-    std::cerr << "fine phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd << " %\n";
+    const double score = seg::sliver_score(m).total;
+    std::cerr << "fine phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd
+              << " %, SLIVER07 score " << score << "\n";
     EXPECT_GE(m.dice, 0.88);
     EXPECT_LE(m.surface.average, 5.0);
+    EXPECT_GE(score, 55.0);
     // Every slice of the propagation is reported once, in ascending order.
     for (std::size_t i = 1; i < r.slices.size(); ++i)
         EXPECT_EQ(r.slices[i].slice, r.slices[i - 1].slice + 1);
@@ -342,8 +353,9 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
 // out and the 3-D pass's hole filling cannot reach; the SLIVER07 truth counts them as liver. On
 // this phantom (0.8 x 0.8 x 2.5 mm, seed 13; the radius and level were not chosen on it): the
 // share of the hepatic veins in the mask, the IVC voxels (not liver) it takes, the maximum
-// surface distance and Dice. Measured: veins 0.52 -> 0.80, IVC 1 436 -> 2 665 voxels (5 % of
-// it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.957 -> 0.962. Bounds:
+// surface distance, Dice and the SLIVER07 score. Measured: veins 0.52 -> 0.80, IVC 1 436 -> 2 665
+// voxels (5 % of it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.957 ->
+// 0.962, score 60.5 -> 71.4 (the score: at least 62 and a gain of 5, ten and half under). Bounds:
 // half of each gain, and the IVC under a tenth.
 TEST(LiverPipeline, VesselInletsAreFilled)
 {
@@ -366,12 +378,15 @@ TEST(LiverPipeline, VesselInletsAreFilled)
     std::cerr << "vessel inlets: " << on.vessel_inlet_voxels << " voxels added; hepatic veins in the mask "
               << veins_off_share << " -> " << veins_on_share << ", IVC voxels " << ivc_off << " -> " << ivc_on
               << " (share " << ivc_on_share << "), max distance " << m_off.surface.maximum << " -> "
-              << m_on.surface.maximum << " mm, Dice " << m_off.dice << " -> " << m_on.dice << "\n";
+              << m_on.surface.maximum << " mm, Dice " << m_off.dice << " -> " << m_on.dice << ", SLIVER07 score "
+              << seg::sliver_score(m_off).total << " -> " << seg::sliver_score(m_on).total << "\n";
     EXPECT_EQ(off.vessel_inlet_voxels, 0u);
     EXPECT_GT(veins_on_share, veins_off_share + 0.14);
     EXPECT_LT(ivc_on_share, 0.1);
     EXPECT_LT(m_on.surface.maximum, m_off.surface.maximum - 5.0);
     EXPECT_GE(m_on.dice, m_off.dice + 0.003);
+    EXPECT_GE(seg::sliver_score(m_on).total, 62.0);
+    EXPECT_GE(seg::sliver_score(m_on).total, seg::sliver_score(m_off).total + 5.0);
     // The parenchyma convention leaves vessels out: nothing is added.
     p.fill_vessel_inlets = true;
     p.post.convention = seg::LiverConvention::Parenchyma;
