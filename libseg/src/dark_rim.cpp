@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -82,9 +83,11 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
                                       std::to_string(median) + ", " + std::to_string(low) + ")");
     if (!(params.level > 0.0 && params.level <= 1.0) || params.ring_voxels < 1 ||
         !(params.max_half_thickness_mm > 0.0) || !std::isfinite(params.max_half_thickness_mm) ||
-        !(params.smoothing_mm >= 0.0) || !std::isfinite(params.smoothing_mm))
+        !(params.smoothing_mm >= 0.0) || !std::isfinite(params.smoothing_mm) || !(params.body_depth_voxels >= 0.0) ||
+        !std::isfinite(params.body_depth_voxels))
         throw core::InvalidInputError("trim_dark_rim: level must lie in (0, 1], ring_voxels be >= 1, "
-                                      "max_half_thickness_mm finite and > 0 and smoothing_mm finite and >= 0");
+                                      "max_half_thickness_mm finite and > 0, smoothing_mm and body_depth_voxels "
+                                      "finite and >= 0");
 
     DarkRimResult r;
     r.mask = core::LabelImage3D(mask.geometry(), 0);

@@ -19,11 +19,11 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kObject = 100, kLayer = 40, kFat = -100, kRib = 400;
-constexpr double kRadius = 30;     // object [px]
-constexpr double kLayerOut = 36;   // the layer's outer radius [px]
-constexpr double kRibOut = 40;     // the rib's outer radius [px]
+constexpr double kRadius = 30;       // object [px]
+constexpr double kLayerOut = 36;     // the layer's outer radius [px]
+constexpr double kRibOut = 40;       // the rib's outer radius [px]
 constexpr double kRibHalfAngle = 30; // the rib spans |theta| < 30 deg
-constexpr double kPixel = 0.8;     // mm
+constexpr double kPixel = 0.8;       // mm
 
 struct Scene {
     core::ImageF image;
@@ -40,7 +40,8 @@ double angle_deg(double dx, double dy)
 // 14 mm lesion) and at 150 deg (radius 4 px = 3.2 mm).
 bool in_disc(double x, double y, double theta_deg, double r)
 {
-    const double cx = 60 + kRadius * std::cos(theta_deg * kPi / 180), cy = 60 + kRadius * std::sin(theta_deg * kPi / 180);
+    const double cx = 60 + kRadius * std::cos(theta_deg * kPi / 180),
+                 cy = 60 + kRadius * std::sin(theta_deg * kPi / 180);
     return std::hypot(x - cx, y - cy) <= r;
 }
 
@@ -49,8 +50,8 @@ Scene scene(double scale = 1.0, double offset = 0.0)
     core::ImageGeometry g;
     g.size = {120, 120, 3};
     g.spacing = {kPixel, kPixel, 2.5};
-    Scene s{core::ImageF(g, 0.f), core::LabelImage3D(g, 0), core::LabelImage3D(g, 0), core::LabelImage3D(g, 0),
-            core::LabelImage3D(g, 0), core::LabelImage3D(g, 0)};
+    Scene s{core::ImageF(g, 0.f),     core::LabelImage3D(g, 0), core::LabelImage3D(g, 0),
+            core::LabelImage3D(g, 0), core::LabelImage3D(g, 0), core::LabelImage3D(g, 0)};
     for (int k = 0; k < 3; ++k)
         for (int j = 0; j < 120; ++j)
             for (int i = 0; i < 120; ++i) {
@@ -149,7 +150,8 @@ TEST(DarkRim, DoesNotDependOnTheUnits)
 {
     const Scene hu = scene(), mr = scene(3.0, 500.0);
     const seg::DarkRimResult a = seg::trim_dark_rim(hu.image, hu.mask, kObject, kObject - 10.0);
-    const seg::DarkRimResult b = seg::trim_dark_rim(mr.image, mr.mask, 3.0 * kObject + 500.0, 3.0 * (kObject - 10.0) + 500.0);
+    const seg::DarkRimResult b =
+        seg::trim_dark_rim(mr.image, mr.mask, 3.0 * kObject + 500.0, 3.0 * (kObject - 10.0) + 500.0);
     EXPECT_NEAR(b.level, 3.0 * a.level + 500.0, 1e-2);
     EXPECT_EQ(a.mask.data, b.mask.data);
 }
@@ -182,6 +184,9 @@ TEST(DarkRim, BadInputIsRefused)
     p = {};
     p.ring_voxels = 0;
     EXPECT_THROW(seg::trim_dark_rim(s.image, s.mask, 100.0, 90.0, p), core::InvalidInputError) << "no ring";
+    p = {};
+    p.body_depth_voxels = -1.0;
+    EXPECT_THROW(seg::trim_dark_rim(s.image, s.mask, 100.0, 90.0, p), core::InvalidInputError) << "negative body depth";
     p = {};
     p.max_half_thickness_mm = 0.0;
     EXPECT_THROW(seg::trim_dark_rim(s.image, s.mask, 100.0, 90.0, p), core::InvalidInputError) << "no thickness";

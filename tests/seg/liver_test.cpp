@@ -85,9 +85,9 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 } // namespace
 
 // 1.4 x 1.4 x 5 mm, noise seed 3: coarse slices make the heart and kidney contacts blurrier.
-// Measured: Dice 0.876, ASD 3.7 mm, RVD +17.6 %, SLIVER07 score 19.2 (0.875 and +18.0 % before the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap,
-// growing pieces and vessel inlets; the kidney under the liver leaks in; the heart above the dome
-// did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
+// Measured: Dice 0.876, ASD 3.7 mm, RVD +17.6 %, SLIVER07 score 19.2 (0.875 and +18.0 % before the dark rim; 0.848, 5.3
+// mm and +28.5 % before the edge snap, growing pieces and vessel inlets; the kidney under the liver leaks in; the heart
+// above the dome did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
 TEST(LiverPipeline, CoarsePhantomIsFound)
 {
     const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
@@ -276,8 +276,8 @@ TEST(LiverPipeline, StopsAtTheLiversTip)
 // (0.8 x 0.8 x 2.5 mm, seed 13) with the 3-D pass off, so that the stacked contours are measured:
 // the share of the truth's voxels that lie just outside the mask (4-neighbours in the slice of a
 // mask voxel), and Dice and ASD. Measured: missed rim 2.4 % -> 1.2 %, Dice 0.950 -> 0.960, ASD 1.79
-// -> 1.61 mm (with the vessel inlets and the dark rim; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm). Bounds: the rim
-// down by a quarter, about half the Dice gain, ASD not worse.
+// -> 1.61 mm (with the vessel inlets and the dark rim; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm).
+// Bounds: the rim down by a quarter, about half the Dice gain, ASD not worse.
 TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);

@@ -211,9 +211,9 @@ TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
             ++removed;
             outside += truth[i] == 0;
         }
-    std::cerr << "ct-dicom: score " << off << " -> " << on << ", dark rim " << dropped << " voxels, final masks differ by "
-              << removed << " voxels, " << double(outside) / double(std::max<std::size_t>(removed, 1))
-              << " of them outside the reference\n";
+    std::cerr << "ct-dicom: score " << off << " -> " << on << ", dark rim " << dropped
+              << " voxels, final masks differ by " << removed << " voxels, "
+              << double(outside) / double(std::max<std::size_t>(removed, 1)) << " of them outside the reference\n";
     EXPECT_GE(on, off + 2.0);
     EXPECT_GE(on, 74.0);
     EXPECT_GE(dropped, 1500.0);
