@@ -8,6 +8,8 @@
 #include "lobe/core/errors.h"
 #include "lobe/seg/edge_map.h"
 
+#include "common/masks.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -93,13 +95,7 @@ std::size_t removed_from(const core::LabelImage3D& before, const core::LabelImag
     return n;
 }
 
-std::size_t count(const core::LabelImage3D& m)
-{
-    std::size_t n = 0;
-    for (auto v : m.data)
-        n += v != 0;
-    return n;
-}
+using test::count;
 
 } // namespace
 

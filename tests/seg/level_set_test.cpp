@@ -4,6 +4,7 @@
 #include "lobe/seg/level_set.h"
 
 #include "common/expect_error.h"
+#include "common/masks.h"
 
 #include <gtest/gtest.h>
 
@@ -40,13 +41,7 @@ LevelSetParams fixed_run(int iterations, int band = 4)
     return p;
 }
 
-std::size_t count(const core::LabelImage3D& m)
-{
-    std::size_t n = 0;
-    for (auto v : m.data)
-        n += v != 0;
-    return n;
-}
+using test::count;
 
 // Radius of the disc (2-D) or ball (3-D) with the mask's physical area or volume.
 double equivalent_radius(const core::LabelImage3D& m)

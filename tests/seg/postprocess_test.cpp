@@ -2,6 +2,7 @@
 #include "lobe/seg/postprocess.h"
 
 #include "common/expect_error.h"
+#include "common/masks.h"
 #include "lobe/seg/metrics.h"
 #include "lphantom/phantom.h"
 
@@ -29,13 +30,7 @@ core::LabelImage3D mask_of(const core::LabelImage3D& labels, std::initializer_li
     return m;
 }
 
-std::size_t count(const core::LabelImage3D& m)
-{
-    std::size_t n = 0;
-    for (auto v : m.data)
-        n += v != 0;
-    return n;
-}
+using test::count;
 
 //! Fraction of the voxels of `part` that `m` holds.
 double covered(const core::LabelImage3D& m, const core::LabelImage3D& part)

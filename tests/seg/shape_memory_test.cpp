@@ -4,6 +4,7 @@
 #include "lobe/seg/shape_memory.h"
 
 #include "common/expect_error.h"
+#include "common/masks.h"
 #include "common/timing.h"
 #include "lphantom/phantom.h"
 
@@ -37,13 +38,7 @@ phantom::PhantomResult make_phantom(std::array<double, 3> spacing, std::uint64_t
     return phantom::generate_phantom(pp);
 }
 
-std::size_t count(const core::LabelImage3D& m)
-{
-    std::size_t n = 0;
-    for (auto v : m.data)
-        n += v != 0;
-    return n;
-}
+using test::count;
 
 core::LabelImage3D unite(const core::LabelImage3D& a, const core::LabelImage3D& b)
 {

@@ -4,6 +4,7 @@
 #include "lobe/seg/skeleton.h"
 
 #include "common/expect_error.h"
+#include "common/masks.h"
 #include "common/tubes.h"
 #include "lobe/seg/distance_transform.h"
 
@@ -27,13 +28,7 @@ int neighbours(const core::LabelImage3D& m, int i, int j, int k)
     return n;
 }
 
-std::size_t count(const core::LabelImage3D& m)
-{
-    std::size_t n = 0;
-    for (auto v : m.data)
-        n += v != 0;
-    return n;
-}
+using test::count;
 
 core::ImageF wall_distance(const core::LabelImage3D& mask)
 {
