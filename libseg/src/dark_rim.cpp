@@ -24,7 +24,17 @@ struct SliceWork {
     detail::Box box; // on the volume's grid, one slice thick
     core::LabelImage3D mask;
     core::ImageF grey;
+    double ci = 0, cj = 0;                     // the mask's centroid (window pixels)
+    std::vector<std::vector<float>> by_sector; // the darker tissue of the ring, per angular sector
 };
+
+//! The angular sector (of n around the centroid ci, cj) of pixel i, j.
+int sector_of(int i, int j, double ci, double cj, int n)
+{
+    constexpr double kTwoPi = 6.283185307179586;
+    const double a = std::atan2(double(j) - cj, double(i) - ci) + kTwoPi / 2; // [0, 2 pi]
+    return std::min(n - 1, static_cast<int>(a / kTwoPi * n));
+}
 
 cv::Mat as_mat(core::LabelImage3D& m)
 {
@@ -84,10 +94,10 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
     if (!(params.level > 0.0 && params.level <= 1.0) || params.ring_voxels < 1 ||
         !(params.max_half_thickness_mm > 0.0) || !std::isfinite(params.max_half_thickness_mm) ||
         !(params.smoothing_mm >= 0.0) || !std::isfinite(params.smoothing_mm) || !(params.body_depth_voxels >= 0.0) ||
-        !std::isfinite(params.body_depth_voxels))
+        !std::isfinite(params.body_depth_voxels) || params.sectors < 0 || params.sector_min_voxels < 1)
         throw core::InvalidInputError("trim_dark_rim: level must lie in (0, 1], ring_voxels be >= 1, "
                                       "max_half_thickness_mm finite and > 0, smoothing_mm and body_depth_voxels "
-                                      "finite and >= 0");
+                                      "finite and >= 0, sectors >= 0 and sector_min_voxels >= 1");
 
     DarkRimResult r;
     r.mask = core::LabelImage3D(mask.geometry(), 0);
@@ -98,6 +108,7 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
     const cv::Mat ring_disc =
         cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * params.ring_voxels + 1, 2 * params.ring_voxels + 1));
     const std::array<int, 3> margin{params.ring_voxels + 2, params.ring_voxels + 2, 0};
+    const int sectors = std::max(1, params.sectors);
 
     // Pass 1: each slice's window, its smoothed grey levels, and the darker tissue in its ring.
     std::vector<SliceWork> work(static_cast<std::size_t>(nz));
@@ -114,10 +125,19 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
         w.grey = gaussian_smooth(detail::crop(core::axial_slice(image, k), w.box), params.smoothing_mm);
         cv::Mat ring;
         cv::dilate(as_mat(w.mask), ring, ring_disc);
+        const cv::Moments mo = cv::moments(as_mat(w.mask), true);
+        w.ci = mo.m10 / mo.m00;
+        w.cj = mo.m01 / mo.m00;
+        w.by_sector.resize(static_cast<std::size_t>(sectors));
         auto& d = darker[static_cast<std::size_t>(k)];
+        const int nx = w.mask.size[0];
         for (std::size_t i = 0; i < w.mask.data.size(); ++i)
-            if (!w.mask.data[i] && ring.data[i] && double(w.grey.data[i]) < low)
+            if (!w.mask.data[i] && ring.data[i] && double(w.grey.data[i]) < low) {
                 d.push_back(w.grey.data[i]);
+                const int pi = static_cast<int>(i % static_cast<std::size_t>(nx)),
+                          pj = static_cast<int>(i / static_cast<std::size_t>(nx));
+                w.by_sector[static_cast<std::size_t>(sector_of(pi, pj, w.ci, w.cj, sectors))].push_back(w.grey.data[i]);
+            }
     }
     std::vector<float> all;
     for (const auto& d : darker)
@@ -136,9 +156,23 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
         if (w.mask.data.empty())
             continue;
         const core::LabelImage3D& m = w.mask;
+        // The level of each sector: from its own darker tissue where the ring holds enough of it
+        // (the muscle under the ribs on one side, fat in front), else the volume's.
+        std::vector<double> level(static_cast<std::size_t>(sectors), r.level);
+        if (params.sectors > 0)
+            for (std::size_t q = 0; q < level.size(); ++q)
+                if (static_cast<int>(w.by_sector[q].size()) >= params.sector_min_voxels) {
+                    const double nb = detail::quantile(w.by_sector[q], 0.5);
+                    level[q] = std::min(low, median - params.level * (median - nb));
+                }
         core::LabelImage3D dark(m.geometry(), 0), rest(m.geometry(), 0), not_dark(m.geometry(), 0);
+        const int wx = m.size[0];
         for (std::size_t i = 0; i < m.data.size(); ++i) {
-            dark.data[i] = m.data[i] && double(w.grey.data[i]) < r.level;
+            const int pi = static_cast<int>(i % static_cast<std::size_t>(wx)),
+                      pj = static_cast<int>(i / static_cast<std::size_t>(wx));
+            const double lv =
+                params.sectors > 0 ? level[static_cast<std::size_t>(sector_of(pi, pj, w.ci, w.cj, sectors))] : r.level;
+            dark.data[i] = m.data[i] && double(w.grey.data[i]) < lv;
             rest.data[i] = m.data[i] && !dark.data[i];
             not_dark.data[i] = !dark.data[i];
         }
@@ -164,12 +198,15 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
             continue;
         std::vector<char> reaches(static_cast<std::size_t>(n), 0);
         std::vector<float> deepest(static_cast<std::size_t>(n), 0.f);
+        std::vector<double> sum(static_cast<std::size_t>(n), 0.0), cnt(static_cast<std::size_t>(n), 0.0);
         const int nx = m.size[0], ny = m.size[1];
         for (int j = 0; j < ny; ++j)
             for (int i = 0; i < nx; ++i) {
                 const auto l = static_cast<std::size_t>(labels.at<int>(j, i));
                 if (l == 0)
                     continue;
+                sum[l] += double(w.grey.at(i, j, 0));
+                cnt[l] += 1.0;
                 deepest[l] = std::max(deepest[l], depth.at(i, j, 0));
                 reaches[l] = reaches[l] || i == 0 || j == 0 || i + 1 == nx || j + 1 == ny || !m.at(i - 1, j, 0) ||
                              !m.at(i + 1, j, 0) || !m.at(i, j - 1, 0) || !m.at(i, j + 1, 0);
@@ -177,7 +214,10 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
         core::LabelImage3D after = m;
         for (std::size_t i = 0; i < m.data.size(); ++i) {
             const auto l = static_cast<std::size_t>(labels.ptr<int>(0)[i]);
-            if (l && reaches[l] && double(deepest[l]) <= params.max_half_thickness_mm)
+            // A thick piece may be a lesion at the surface (liver under SLIVER07), unless it is as dark
+            // as the tissue around the liver (fat, lung or gas taken in at the dome or a fissure).
+            const bool thin = double(deepest[l]) <= params.max_half_thickness_mm;
+            if (l && reaches[l] && (thin || sum[l] / std::max(cnt[l], 1.0) <= r.neighbour))
                 after.data[i] = 0;
         }
         // What the trim cut off from the body goes with it (the sliver along the rib); pieces that

@@ -85,9 +85,9 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 } // namespace
 
 // 1.4 x 1.4 x 5 mm, noise seed 3: coarse slices make the heart and kidney contacts blurrier.
-// Measured: Dice 0.876, ASD 3.7 mm, RVD +17.6 %, SLIVER07 score 19.2 (0.875 and +18.0 % before the dark rim; 0.848, 5.3
-// mm and +28.5 % before the edge snap, growing pieces and vessel inlets; the kidney under the liver leaks in; the heart
-// above the dome did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
+// Measured: Dice 0.893, ASD 3.3 mm, RVD +13.3 %, SLIVER07 score 29.0 (0.876, +17.6 % and 19.2 with the first form of
+// the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap, growing pieces and vessel inlets; the kidney under the
+// liver leaks in; the heart above the dome did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
 TEST(LiverPipeline, CoarsePhantomIsFound)
 {
     const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
@@ -104,15 +104,15 @@ TEST(LiverPipeline, CoarsePhantomIsFound)
     EXPECT_LE(m.surface.average, 6.5);
     EXPECT_LE(std::abs(m.rvd), 50.0);
     // The score is low at 5 mm slices (the kidney's volume and distance errors); a bound under
-    // the measured 19.2, which the heart leak of before the dome contact (Dice 0.82) falls below.
+    // the measured 29.0, which the heart leak of before the dome contact (Dice 0.82) falls below.
     // Scores move by several points when a build changes one slice's outcome (liver.md), hence
     // the margin.
-    EXPECT_GE(score, 10.0);
+    EXPECT_GE(score, 18.0);
     // The propagation stops below the start slice (the heart/lung slice).
     EXPECT_LT(r.last_slice, r.start.slice);
 }
 
-// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.946, ASD 1.5 mm, SLIVER07 score 66.4 (0.908
+// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.951, ASD 1.5 mm, SLIVER07 score 68.6 (0.908
 // and 3.9 mm before the edge snap, growing pieces and vessel inlets; 0.875 and 4.9 mm before the
 // dome contact). The score's bound is ten points under the measured one (see the test above).
 TEST(LiverPipeline, FinePhantomIsFound)
@@ -125,7 +125,7 @@ TEST(LiverPipeline, FinePhantomIsFound)
               << " %, SLIVER07 score " << score << "\n";
     EXPECT_GE(m.dice, 0.88);
     EXPECT_LE(m.surface.average, 5.0);
-    EXPECT_GE(score, 55.0);
+    EXPECT_GE(score, 58.0);
     // Every slice of the propagation is reported once, in ascending order.
     for (std::size_t i = 1; i < r.slices.size(); ++i)
         EXPECT_EQ(r.slices[i].slice, r.slices[i - 1].slice + 1);
@@ -133,7 +133,7 @@ TEST(LiverPipeline, FinePhantomIsFound)
 
 // The propagation alone, from the true liver of the centroid slice shrunk by 10 mm: what the
 // slice-by-slice driver achieves when the seed is right (no heart is known, so no dome contact
-// is sought). Measured: Dice 0.87 (0.81 before the edge snap, growing pieces and vessel inlets;
+// is sought). Measured: Dice 0.88 (0.81 before the edge snap, growing pieces and vessel inlets;
 // no rib cage, no start slice: the heart and kidney leaks are larger than in the whole pipeline).
 TEST(LiverPipeline, PropagationFromAKnownSeed)
 {
@@ -158,8 +158,8 @@ TEST(LiverPipeline, PropagationFromAKnownSeed)
 // The dome contact (docs/algorithms/liver.md, "The dome contact") on a phantom that neither it
 // nor the pipeline was tuned on (1.0 x 1.0 x 2.5 mm, noise seed 11). Without it the propagation
 // takes the heart wall over the dome; with it the columns above the diaphragm's z-valley are
-// closed. Measured: 47 226 heart voxels (wall and blood) in the mask without, 5 889 with (-88 %);
-// Dice 0.904 -> 0.936 (before the edge snap, growing pieces and vessel inlets: 45 725 -> 7 197,
+// closed. Measured: 47 223 heart voxels (wall and blood) in the mask without, 5 889 with (-88 %);
+// Dice 0.910 -> 0.942 (before the edge snap, growing pieces and vessel inlets: 45 725 -> 7 197,
 // 0.885 -> 0.914). The bounds ask for half of each gain.
 TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
 {
@@ -258,8 +258,8 @@ TEST(LiverPipeline, NoLiverBelowTheLiver)
 // grey level is muscle and bowel (centre about 20 HU, band up to about 70 HU): before the layer
 // had to hold the liver's grey level, the propagation followed it 4 slices below the tip (4 946
 // false voxels, first slice 8 against the truth's 12); measured after: first slice 13, no voxel
-// below the tip, Dice 0.908 (now first slice 14 and Dice 0.962, with the edge snap, growing
-// pieces and vessel inlets). The bound allows one slice of partial volume at the tip.
+// below the tip, Dice 0.908 (now first slice 14 and Dice 0.964, with the edge snap, growing
+// pieces, vessel inlets and dark rim). The bound allows one slice of partial volume at the tip.
 TEST(LiverPipeline, StopsAtTheLiversTip)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
@@ -268,15 +268,15 @@ TEST(LiverPipeline, StopsAtTheLiversTip)
     const auto m = seg::evaluate_segmentation(r.mask, c.truth);
     std::cerr << "tip: first slice " << r.first_slice << " (truth " << first << "), Dice " << m.dice << "\n";
     EXPECT_GE(r.first_slice, first - 1);
-    EXPECT_GE(m.dice, 0.88); // measured 0.962 (0.908 before the edge snap and vessel inlets)
+    EXPECT_GE(m.dice, 0.88); // measured 0.964 (0.908 before the edge snap and vessel inlets)
 }
 
 // The edge snap (LiverParams::use_edge_snap): the propagated snakes end at their iteration bound
 // with the contour short of the edge, and the truth's outermost ring is missed. On this phantom
 // (0.8 x 0.8 x 2.5 mm, seed 13) with the 3-D pass off, so that the stacked contours are measured:
 // the share of the truth's voxels that lie just outside the mask (4-neighbours in the slice of a
-// mask voxel), and Dice and ASD. Measured: missed rim 2.4 % -> 1.2 %, Dice 0.950 -> 0.960, ASD 1.79
-// -> 1.61 mm (with the vessel inlets and the dark rim; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm).
+// mask voxel), and Dice and ASD. Measured: missed rim 2.4 % -> 1.3 %, Dice 0.951 -> 0.962, ASD 1.79
+// -> 1.58 mm (with the vessel inlets and the dark rim; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm).
 // Bounds: the rim down by a quarter, about half the Dice gain, ASD not worse.
 TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
 {
@@ -313,8 +313,8 @@ TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
 // piece of the contour that grows from one slice to the next is not liver. On this phantom (1.0 x
 // 1.0 x 3 mm, seed 4; the limit was chosen on others, liver.md) the rule acts on two slices and
 // the piece it drops at the lower one is the right kidney under the liver's tip, carried down
-// from there. Measured: voxels outside the truth 57 284 -> 50 309, right kidney 6 860 fewer,
-// Dice 0.922 -> 0.929 (57 970 -> 51 021, 6 857 and 0.921 -> 0.928 before the dark rim). Bounds: half of each gain.
+// from there. Measured: voxels outside the truth 49 391 -> 42 424, right kidney 6 862 fewer,
+// Dice 0.930 -> 0.936 (57 970 -> 51 021, 6 857 and 0.921 -> 0.928 before the dark rim). Bounds: half of each gain.
 TEST(LiverPipeline, GrowingPiecesAreDropped)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
@@ -353,9 +353,9 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
 // out and the 3-D pass's hole filling cannot reach; the SLIVER07 truth counts them as liver. On
 // this phantom (0.8 x 0.8 x 2.5 mm, seed 13; the radius and level were not chosen on it): the
 // share of the hepatic veins in the mask, the IVC voxels (not liver) it takes, the maximum
-// surface distance, Dice and the SLIVER07 score. Measured: veins 0.52 -> 0.80, IVC 1 436 -> 2 665
-// voxels (5 % of it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.957 ->
-// 0.962, score 60.5 -> 71.4 (the score: at least 62 and a gain of 5, ten and half under). Bounds:
+// surface distance, Dice and the SLIVER07 score. Measured: veins 0.52 -> 0.80, IVC 1 419 -> 2 632
+// voxels (5 % of it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.958 ->
+// 0.964, score 60.1 -> 71.2 (the score: at least 62 and a gain of 5, ten and half under). Bounds:
 // half of each gain, and the IVC under a tenth.
 TEST(LiverPipeline, VesselInletsAreFilled)
 {
@@ -401,8 +401,8 @@ TEST(LiverPipeline, VesselInletsAreFilled)
 // the contour crosses from the liver's tip into the right kidney (112 HU against the liver's 105)
 // and, without the stop, follows it down to the volume's first slice. Measured: truth's lowest
 // slice 11 (a sliver of the tip); with the stop the mask begins at slice 12 (the stop ends the
-// propagation at 11, where more than 35 % of the contour is kidney), Dice 0.921;
-// without it slice 0, Dice 0.904. Bounds: within two slices of the tip with the
+// propagation at 11, where more than 35 % of the contour is kidney), Dice 0.930;
+// without it slice 0, Dice 0.911. Bounds: within two slices of the tip with the
 // stop, more than five below it without, and Dice not lower. The growing-pieces rule is off here:
 // on this phantom it drops the kidney's lineage too (LiverPipeline.GrowingPiecesAreDropped), and
 // the test is of the stop alone.
@@ -529,7 +529,7 @@ TEST(LiverPipeline, MrLiverContrastMap)
 // The MR path end to end on a T1-like phantom (1.4 x 1.4 x 5 mm, noise seed 7, not used
 // elsewhere): detected as MR, seeded inside the liver on the MR's own grey levels (not in the
 // dark, homogeneous lungs that a plain [0, 99th percentile] range picked), segmented on the
-// liver-contrast map. Measured: Dice 0.845, ASD 7.5 mm, RVD -10.2 % (the coarse phantom's heart and
+// liver-contrast map. Measured: Dice 0.847, ASD 7.4 mm, RVD -10.9 % (the coarse phantom's heart and
 // kidney contacts, as on its CT: LiverPipeline.CoarsePhantomIsFound).
 TEST(LiverPipeline, T1LikePhantomIsSegmentedAsMr)
 {

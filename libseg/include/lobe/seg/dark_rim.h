@@ -24,29 +24,35 @@ struct DarkRimParams {
     double body_depth_voxels = 2.0;     //!< the object's body in a slice: its non-dark pieces reaching
                                         //!< more than this many pixels from their edge (not the thin partial-
                                         //!< volume sliver between a dark layer and a bright rib)
+    int sectors = 8;                    //!< the darker tissue is measured per angular sector of each slice
+                                        //!< (around the mask's centroid); 0 = one neighbour for the volume
+    int sector_min_voxels = 20;         //!< a sector with fewer darker ring pixels takes the volume's
 };
 
 //! What `trim_dark_rim` returns.
 struct DarkRimResult {
     core::LabelImage3D mask; //!< the input mask less the dark rim (0/1)
-    double level = 0;        //!< the smoothed grey level below which a voxel was dark
+    double level = 0;        //!< the volume's level (a sector with its own darker tissue has its own)
     double neighbour = 0;    //!< the median of the darker tissue outside the mask
     std::size_t removed = 0; //!< voxels dropped
     bool applied = false;    //!< false: no darker tissue outside the mask, nothing done
 };
 
-//! Drops, on every axial slice of `mask` (non-zero = object), the voxels whose smoothed grey
-//! level lies below `DarkRimResult::level` and which are not among the 8 neighbours of the
-//! slice's body (its non-dark pieces deeper than `body_depth_voxels`), in 8-connected pieces that
-//! reach the mask's outside in the slice and are at most 2 x `max_half_thickness_mm` thick, and
-//! the pieces of the mask that this cuts off from the body. The level is
-//! `min(low, median − level × (median − neighbour))`, neighbour being the median of the smoothed
-//! grey levels below `low` in a ring of `ring_voxels` pixels outside the mask over all slices.
-//! `median` is the object's grey level and `low` the low end of its band (below it a voxel is not
-//! object-like), both in `image` units. The pixels touching the object are kept: partial volume
-//! lies there. \throw InvalidInputError for a mask not on the image's grid, non-finite median or
-//! low, low above median, or parameters out of range (level in (0, 1], ring_voxels >= 1,
-//! max_half_thickness_mm > 0, smoothing_mm and body_depth_voxels >= 0).
+//! Drops, on every axial slice of `mask` (non-zero = object), the voxels darker than the level
+//! (smoothed grey level) that are not among the 8 neighbours of the slice's body (its non-dark
+//! pieces deeper than `body_depth_voxels`), in 8-connected pieces that reach the mask's outside in
+//! the slice and are at most 2 x `max_half_thickness_mm` thick, or thicker but no brighter on
+//! average than the volume's neighbour (the surroundings' fat, lung or gas, not a lesion), and the
+//! pieces of the mask that this cuts off from the body. The level is
+//! `min(low, median − level × (median − neighbour))`, the neighbour being the median of the
+//! smoothed grey levels below `low` in a ring of `ring_voxels` pixels outside the mask: per
+//! angular sector of each slice where the sector's ring holds `sector_min_voxels` such pixels,
+//! else over the whole volume (`DarkRimResult::level` and `neighbour` are the volume's). `median`
+//! is the object's grey level and `low` the low end of its band (below it a voxel is not
+//! object-like), both in `image` units. \throw InvalidInputError for a mask not on the image's
+//! grid, non-finite median or low, low above median, or parameters out of range (level in (0, 1],
+//! ring_voxels >= 1, max_half_thickness_mm > 0, smoothing_mm and body_depth_voxels >= 0, sectors
+//! >= 0, sector_min_voxels >= 1).
 DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D& mask, double median, double low,
                             const DarkRimParams& params = {});
 
