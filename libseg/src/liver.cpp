@@ -760,8 +760,8 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         // The contour's rim may hold a layer of darker tissue that it crossed at a weak edge
         // (the diaphragm between the liver and the ribs): dropped before the 3-D pass.
         const auto td = Clock::now();
-        DarkRimResult rim = trim_dark_rim(hu, result.mask, cx.band.mean,
-                                          cx.band.mean - params.tissue_stop_sigmas * cx.band.sigma, params.dark_rim);
+        const double band_low = cx.band.mean - std::abs(params.tissue_stop_sigmas) * cx.band.sigma;
+        DarkRimResult rim = trim_dark_rim(hu, result.mask, cx.band.mean, band_low, params.dark_rim);
         result.mask = std::move(rim.mask);
         result.dark_rim_voxels = rim.removed;
         result.dark_rim_level = rim.level;
