@@ -439,9 +439,94 @@ std::size_t fill_vessel_inlets(const Context& c, core::LabelImage3D& mask, const
     return added;
 }
 
+//! The heart over the dome (docs/algorithms/liver.md, "The heart model"): the heart's blood pool,
+//! found on the start slice as the bright (contrast-filled) piece nearest the template's heart
+//! centre and followed down slice by slice while its pieces stay large (the IVC, which leaves the
+//! right atrium downwards through the liver, is a small piece and is not followed), dilated in
+//! 3-D by the myocardium's thickness. Empty without a start slice.
+core::LabelImage3D heart_model(const Context& c, int lowest, double bright)
+{
+    const LiverParams& p = c.p;
+    const core::ImageF& hu = c.hu;
+    core::LabelImage3D blood(hu.geometry(), 0);
+    if (!c.heart_known || c.top_slice < 0 || c.top_slice >= hu.size[2])
+        return blood;
+    const double px = pixel_area_mm2(hu.geometry());
+    double largest = 0;
+    core::LabelImage3D prev;
+    for (int k = c.top_slice; k >= std::max(0, lowest); --k) {
+        const core::ImageF sm = gaussian_smooth(core::axial_slice(hu, k), 1.0);
+        cv::Mat bin(sm.size[1], sm.size[0], CV_8U, cv::Scalar(0));
+        for (int j = 0; j < sm.size[1]; ++j)
+            for (int i = 0; i < sm.size[0]; ++i) {
+                const double v = sm.at(i, j, 0);
+                bin.at<uchar>(j, i) = v >= bright && v <= p.heart_max_hu ? 1 : 0;
+            }
+        cv::Mat labels, stats, centroids;
+        const int n = cv::connectedComponentsWithStats(bin, labels, stats, centroids, 8, CV_32S);
+        std::vector<char> keep(static_cast<std::size_t>(n), 0);
+        if (prev.data.empty()) {
+            // The start slice: the piece nearest the heart centre, within the search radius.
+            int best = 0;
+            double best_d = p.heart_search_mm;
+            for (int j = 0; j < labels.rows; ++j)
+                for (int i = 0; i < labels.cols; ++i) {
+                    const int l = labels.at<int>(j, i);
+                    if (!l || stats.at<int>(l, cv::CC_STAT_AREA) * px < p.heart_min_area_mm2)
+                        continue;
+                    const double d = std::hypot((i - c.heart_i) * hu.spacing[0], (j - c.heart_j) * hu.spacing[1]);
+                    if (d < best_d) {
+                        best_d = d;
+                        best = l;
+                    }
+                }
+            if (!best)
+                return blood;
+            keep[static_cast<std::size_t>(best)] = 1;
+        } else {
+            // Below: the large pieces that overlap the blood of the slice above.
+            for (int j = 0; j < labels.rows; ++j)
+                for (int i = 0; i < labels.cols; ++i) {
+                    const int l = labels.at<int>(j, i);
+                    if (l && prev.at(i, j, 0) &&
+                        stats.at<int>(l, cv::CC_STAT_AREA) * px >=
+                            std::max(p.heart_min_area_mm2, p.heart_min_area_fraction * largest))
+                        keep[static_cast<std::size_t>(l)] = 1;
+                }
+        }
+        core::LabelImage3D cur(sm.geometry(), 0);
+        double area = 0;
+        for (int j = 0; j < labels.rows; ++j)
+            for (int i = 0; i < labels.cols; ++i)
+                if (keep[static_cast<std::size_t>(labels.at<int>(j, i))]) {
+                    cur.at(i, j, 0) = 1;
+                    blood.at(i, j, k) = 1;
+                    area += px;
+                }
+        if (area <= 0)
+            break;
+        largest = std::max(largest, area);
+        prev = std::move(cur);
+    }
+    if (detail::bounding_box(blood).empty())
+        return blood;
+    // The myocardium: everything within the wall thickness of the blood pool, in 3-D.
+    const detail::Box b = detail::grown(detail::bounding_box(blood), detail::voxels_for(hu.geometry(), p.heart_wall_mm),
+                                        hu.geometry());
+    const core::LabelImage3D part = detail::crop(blood, b);
+    const core::ImageF d = euclidean_distance(part);
+    core::LabelImage3D grown_part(part.geometry(), 0);
+    for (std::size_t i = 0; i < d.data.size(); ++i)
+        grown_part.data[i] = double(d.data[i]) <= p.heart_wall_mm ? 1 : 0;
+    core::LabelImage3D model(hu.geometry(), 0);
+    detail::paste(model, grown_part, b);
+    return model;
+}
+
 //! Segments slice k from the previous slice's accepted mask, or from the seed (previous null).
 SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& start, const core::LabelImage3D* previous,
-                           double largest_area_mm2, const core::LabelImage3D* above_contact = nullptr)
+                           double largest_area_mm2, const core::LabelImage3D* above_contact = nullptr,
+                           const core::LabelImage3D* heart = nullptr)
 {
     const LiverParams& p = c.p;
     const auto t0 = Clock::now();
@@ -509,6 +594,14 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             excluded.data[i] = excluded.data[i] || above_contact->data[i];
         out.report.above_contact_mm2 = area_of(*above_contact);
     }
+    // The heart model's columns on this slice are closed the same way.
+    if (heart && count(*heart) > 0) {
+        if (excluded.data.empty())
+            excluded = core::LabelImage3D(g, 0);
+        for (std::size_t i = 0; i < excluded.data.size(); ++i)
+            excluded.data[i] = excluded.data[i] || heart->data[i];
+        out.report.heart_mm2 = area_of(*heart);
+    }
     // The snake must not flow back into an excluded organ (or above a dome contact) through its
     // faint contact line: to it the region looks like fat (a strong edge), and the contour is
     // cut there; the start contour leaves it out.
@@ -518,7 +611,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
                 img.data[i] = static_cast<float>(p.rib_background_hu);
                 init.data[i] = 0;
             }
-    if (contact && count(init) == 0) {
+    if ((contact || out.report.heart_mm2 > 0) && count(init) == 0) {
         out.stop = true;
         return out;
     }
@@ -628,6 +721,9 @@ void report(const Context& c, const LiverSliceReport& r)
       << (r.rejected ? (r.recovered ? ", clipped by the shape memory (" : ", implausible even clipped (") +
                            r.shape_reason + ")"
                      : "")
+      << (r.heart_mm2 > 0 ? ", " + std::to_string(static_cast<int>(std::lround(r.heart_mm2 / 100))) +
+                                  " cm2 of the heart model"
+                            : "")
       << (r.above_contact_mm2 > 0 ? ", " + std::to_string(static_cast<int>(std::lround(r.above_contact_mm2 / 100))) +
                                         " cm2 above a dome contact"
                                   : "")
@@ -666,6 +762,20 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         cx.band = {median, sd};
     }
 
+    core::LabelImage3D heart;
+    if (params.use_heart_model && cx.heart_known) {
+        const auto th = Clock::now();
+        heart = heart_model(cx, seed_slice + 1, cx.band.mean + params.vessel_inlet_sigmas * cx.band.sigma);
+        result.heart_model_voxels = count(heart);
+        result.timings.emplace_back("heart model", seconds_since(th));
+        if (c.progress) {
+            std::ostringstream m;
+            m.precision(3);
+            m << "heart model: " << result.heart_model_voxels << " voxels closed to the upward propagation, "
+              << seconds_since(th) << " s";
+            c.progress(m.str());
+        }
+    }
     std::vector<SliceOutcome> up, down;
     auto run = [&](int step, std::vector<SliceOutcome>& out) {
         const core::LabelImage3D* prev = &first.mask;
@@ -677,7 +787,10 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         if (contacts)
             pending = dome_contact(cx, seed_slice, first.mask);
         for (int k = seed_slice + step; k >= 0 && k < end; k += step) {
-            SliceOutcome s = segment_slice(cx, k, *prev, prev, largest, closed.data.empty() ? nullptr : &closed);
+            const core::LabelImage3D heart_k =
+                step > 0 && !heart.data.empty() ? core::axial_slice(heart, k) : core::LabelImage3D();
+            SliceOutcome s = segment_slice(cx, k, *prev, prev, largest, closed.data.empty() ? nullptr : &closed,
+                                           heart_k.data.empty() ? nullptr : &heart_k);
             if (s.mask.data.empty())
                 break;
             out.push_back(std::move(s));
@@ -891,6 +1004,14 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
                                       "vessel_inlet_sigmas finite and >= 0 (are " +
                                       std::to_string(params.vessel_inlet_closing_mm) + ", " +
                                       std::to_string(params.vessel_inlet_sigmas) + ")");
+    if (params.use_heart_model &&
+        !(params.heart_wall_mm >= 0.0 && std::isfinite(params.heart_wall_mm) && std::isfinite(params.heart_max_hu) &&
+          params.heart_search_mm > 0.0 && std::isfinite(params.heart_search_mm) && params.heart_min_area_mm2 >= 0.0 &&
+          std::isfinite(params.heart_min_area_mm2) && params.heart_min_area_fraction >= 0.0 &&
+          params.heart_min_area_fraction <= 1.0))
+        throw core::InvalidInputError("segment_liver: the heart model needs heart_wall_mm >= 0, heart_search_mm > 0, "
+                                      "heart_min_area_mm2 >= 0, heart_min_area_fraction in [0, 1] and a finite "
+                                      "heart_max_hu");
     if (params.drop_growing_pieces && !(params.piece_growth_limit >= 1.0 && std::isfinite(params.piece_growth_limit)))
         throw core::InvalidInputError("segment_liver: piece_growth_limit must be finite and >= 1, is " +
                                       std::to_string(params.piece_growth_limit));

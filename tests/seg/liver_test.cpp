@@ -85,8 +85,8 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 } // namespace
 
 // 1.4 x 1.4 x 5 mm, noise seed 3: coarse slices make the heart and kidney contacts blurrier.
-// Measured: Dice 0.893, ASD 3.3 mm, RVD +13.3 %, SLIVER07 score 29.0 (0.876, +17.6 % and 19.2 with the first form of
-// the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap, growing pieces and vessel inlets; the kidney under the
+// Measured: Dice 0.907, ASD 2.7 mm, RVD +10.2 %, SLIVER07 score 40.3 (29.0 before the heart model; 0.876, +17.6 % and
+// 19.2 with the first form of the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap, growing pieces and vessel inlets; the kidney under the
 // liver leaks in; the heart above the dome did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
 TEST(LiverPipeline, CoarsePhantomIsFound)
 {
@@ -104,15 +104,15 @@ TEST(LiverPipeline, CoarsePhantomIsFound)
     EXPECT_LE(m.surface.average, 6.5);
     EXPECT_LE(std::abs(m.rvd), 50.0);
     // The score is low at 5 mm slices (the kidney's volume and distance errors); a bound under
-    // the measured 29.0, which the heart leak of before the dome contact (Dice 0.82) falls below.
+    // the measured 40.3, which the heart leak of before the dome contact (Dice 0.82) falls below.
     // Scores move by several points when a build changes one slice's outcome (liver.md), hence
     // the margin.
-    EXPECT_GE(score, 18.0);
+    EXPECT_GE(score, 30.0);
     // The propagation stops below the start slice (the heart/lung slice).
     EXPECT_LT(r.last_slice, r.start.slice);
 }
 
-// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.951, ASD 1.5 mm, SLIVER07 score 68.6 (0.908
+// 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.952, ASD 1.4 mm, SLIVER07 score 69.9 (0.908
 // and 3.9 mm before the edge snap, growing pieces and vessel inlets; 0.875 and 4.9 mm before the
 // dome contact). The score's bound is ten points under the measured one (see the test above).
 TEST(LiverPipeline, FinePhantomIsFound)
@@ -125,7 +125,7 @@ TEST(LiverPipeline, FinePhantomIsFound)
               << " %, SLIVER07 score " << score << "\n";
     EXPECT_GE(m.dice, 0.88);
     EXPECT_LE(m.surface.average, 5.0);
-    EXPECT_GE(score, 58.0);
+    EXPECT_GE(score, 59.0);
     // Every slice of the propagation is reported once, in ascending order.
     for (std::size_t i = 1; i < r.slices.size(); ++i)
         EXPECT_EQ(r.slices[i].slice, r.slices[i - 1].slice + 1);
@@ -164,9 +164,11 @@ TEST(LiverPipeline, PropagationFromAKnownSeed)
 TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
 {
     const Case c = phantom_case({1.0, 1.0, 2.5}, 11);
-    seg::LiverParams off;
+    seg::LiverParams on; // the dome contact alone: the heart model closes the heart too (next test)
+    on.use_heart_model = false;
+    seg::LiverParams off = on;
     off.use_dome_contact = false;
-    const seg::LiverResult with = seg::segment_liver(c.hu);
+    const seg::LiverResult with = seg::segment_liver(c.hu, on);
     const seg::LiverResult without = seg::segment_liver(c.hu, off);
     auto heart = [&](const core::LabelImage3D& m) {
         return voxels_on(m, c.labels, {phantom::kHeart, phantom::kHeartBlood});
@@ -188,6 +190,48 @@ TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
         EXPECT_EQ(s.above_contact_mm2, 0.0);
     EXPECT_LT(double(heart(with.mask)), 0.58 * double(heart(without.mask)));
     EXPECT_GE(d_on, d_off + 0.014);
+}
+
+// The heart model (LiverParams::use_heart_model): at thick slices the diaphragm over the dome is
+// no z-valley and the dome contact finds little, so the heart wall is taken in the liver's place.
+// The heart's blood pool, followed down from the start slice and widened by the myocardium's 10
+// mm, closes it. On a phantom used for nothing else (1.2 x 1.2 x 5 mm, noise seed 17). Measured:
+// heart voxels in the mask 10 930 without, 4 910 with; Dice 0.905 -> 0.923; truth voxels missed
+// 9 310 -> 7 526 (the model takes no liver here). Bounds: two thirds of the heart voxels, half the
+// Dice gain, no more liver missed.
+TEST(LiverPipeline, HeartModelKeepsTheHeartOutAtThickSlices)
+{
+    const Case c = phantom_case({1.2, 1.2, 5.0}, 17);
+    seg::LiverParams off;
+    off.use_heart_model = false;
+    const seg::LiverResult with = seg::segment_liver(c.hu);
+    const seg::LiverResult without = seg::segment_liver(c.hu, off);
+    const auto heart = [&](const core::LabelImage3D& m) {
+        return voxels_on(m, c.labels, {phantom::kHeart, phantom::kHeartBlood});
+    };
+    const auto missed = [&](const core::LabelImage3D& m) {
+        std::size_t n = 0;
+        for (std::size_t i = 0; i < m.data.size(); ++i)
+            n += c.truth.data[i] && !m.data[i];
+        return n;
+    };
+    const double d_on = seg::evaluate_segmentation(with.mask, c.truth).dice;
+    const double d_off = seg::evaluate_segmentation(without.mask, c.truth).dice;
+    std::cerr << "heart model: " << with.heart_model_voxels << " voxels; heart in the mask " << heart(without.mask)
+              << " -> " << heart(with.mask) << ", Dice " << d_off << " -> " << d_on << ", liver missed "
+              << missed(without.mask) << " -> " << missed(with.mask) << "\n";
+    EXPECT_GT(with.heart_model_voxels, 0u);
+    EXPECT_EQ(without.heart_model_voxels, 0u);
+    int closed = 0;
+    for (const auto& s : with.slices)
+        closed += s.heart_mm2 > 0;
+    EXPECT_GT(closed, 0);
+    EXPECT_LT(double(heart(with.mask)), 2.0 / 3.0 * double(heart(without.mask)));
+    EXPECT_GE(d_on, d_off + 0.009);
+    EXPECT_LE(missed(with.mask), missed(without.mask));
+    seg::LiverParams bad;
+    bad.heart_min_area_fraction = 1.5;
+    EXPECT_THROW(seg::segment_liver(c.hu, bad), core::InvalidInputError);
 }
 
 // Volumes it cannot handle get a clear error, never a garbage mask.
@@ -258,7 +302,7 @@ TEST(LiverPipeline, NoLiverBelowTheLiver)
 // grey level is muscle and bowel (centre about 20 HU, band up to about 70 HU): before the layer
 // had to hold the liver's grey level, the propagation followed it 4 slices below the tip (4 946
 // false voxels, first slice 8 against the truth's 12); measured after: first slice 13, no voxel
-// below the tip, Dice 0.908 (now first slice 14 and Dice 0.964, with the edge snap, growing
+// below the tip, Dice 0.908 (now first slice 14 and Dice 0.963, with the edge snap, growing
 // pieces, vessel inlets and dark rim). The bound allows one slice of partial volume at the tip.
 TEST(LiverPipeline, StopsAtTheLiversTip)
 {
@@ -268,15 +312,15 @@ TEST(LiverPipeline, StopsAtTheLiversTip)
     const auto m = seg::evaluate_segmentation(r.mask, c.truth);
     std::cerr << "tip: first slice " << r.first_slice << " (truth " << first << "), Dice " << m.dice << "\n";
     EXPECT_GE(r.first_slice, first - 1);
-    EXPECT_GE(m.dice, 0.88); // measured 0.964 (0.908 before the edge snap and vessel inlets)
+    EXPECT_GE(m.dice, 0.88); // measured 0.963 (0.908 before the edge snap and vessel inlets)
 }
 
 // The edge snap (LiverParams::use_edge_snap): the propagated snakes end at their iteration bound
 // with the contour short of the edge, and the truth's outermost ring is missed. On this phantom
 // (0.8 x 0.8 x 2.5 mm, seed 13) with the 3-D pass off, so that the stacked contours are measured:
 // the share of the truth's voxels that lie just outside the mask (4-neighbours in the slice of a
-// mask voxel), and Dice and ASD. Measured: missed rim 2.4 % -> 1.3 %, Dice 0.951 -> 0.962, ASD 1.79
-// -> 1.58 mm (with the vessel inlets and the dark rim; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm).
+// mask voxel), and Dice and ASD. Measured: missed rim 2.4 % -> 1.3 %, Dice 0.950 -> 0.961, ASD 1.83
+// -> 1.63 mm (with the vessel inlets and the dark rim; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm).
 // Bounds: the rim down by a quarter, about half the Dice gain, ASD not worse.
 TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
 {
@@ -313,8 +357,8 @@ TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
 // piece of the contour that grows from one slice to the next is not liver. On this phantom (1.0 x
 // 1.0 x 3 mm, seed 4; the limit was chosen on others, liver.md) the rule acts on two slices and
 // the piece it drops at the lower one is the right kidney under the liver's tip, carried down
-// from there. Measured: voxels outside the truth 49 391 -> 42 424, right kidney 6 862 fewer,
-// Dice 0.930 -> 0.936 (57 970 -> 51 021, 6 857 and 0.921 -> 0.928 before the dark rim). Bounds: half of each gain.
+// from there. Measured: voxels outside the truth 43 308 -> 36 339, right kidney 6 862 fewer,
+// Dice 0.935 -> 0.942 (57 970 -> 51 021, 6 857 and 0.921 -> 0.928 before the dark rim). Bounds: half of each gain.
 TEST(LiverPipeline, GrowingPiecesAreDropped)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
@@ -353,9 +397,9 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
 // out and the 3-D pass's hole filling cannot reach; the SLIVER07 truth counts them as liver. On
 // this phantom (0.8 x 0.8 x 2.5 mm, seed 13; the radius and level were not chosen on it): the
 // share of the hepatic veins in the mask, the IVC voxels (not liver) it takes, the maximum
-// surface distance, Dice and the SLIVER07 score. Measured: veins 0.52 -> 0.80, IVC 1 419 -> 2 632
-// voxels (5 % of it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.958 ->
-// 0.964, score 60.1 -> 71.2 (the score: at least 62 and a gain of 5, ten and half under). Bounds:
+// surface distance, Dice and the SLIVER07 score. Measured: veins 0.52 -> 0.80, IVC 1 420 -> 2 638
+// voxels (5 % of it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.957 ->
+// 0.963, score 59.3 -> 70.3 (the score: at least 62 and a gain of 5, ten and half under). Bounds:
 // half of each gain, and the IVC under a tenth.
 TEST(LiverPipeline, VesselInletsAreFilled)
 {
@@ -401,8 +445,8 @@ TEST(LiverPipeline, VesselInletsAreFilled)
 // the contour crosses from the liver's tip into the right kidney (112 HU against the liver's 105)
 // and, without the stop, follows it down to the volume's first slice. Measured: truth's lowest
 // slice 11 (a sliver of the tip); with the stop the mask begins at slice 12 (the stop ends the
-// propagation at 11, where more than 35 % of the contour is kidney), Dice 0.930;
-// without it slice 0, Dice 0.911. Bounds: within two slices of the tip with the
+// propagation at 11, where more than 35 % of the contour is kidney), Dice 0.935;
+// without it slice 0, Dice 0.919. Bounds: within two slices of the tip with the
 // stop, more than five below it without, and Dice not lower. The growing-pieces rule is off here:
 // on this phantom it drops the kidney's lineage too (LiverPipeline.GrowingPiecesAreDropped), and
 // the test is of the stop alone.

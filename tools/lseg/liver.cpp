@@ -29,7 +29,7 @@ struct LiverOptions {
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
-         no_vessel_inlets = false, no_dark_rim = false;
+         no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false;
     seg::LiverParams params;
 };
 
@@ -59,8 +59,9 @@ void write_pictures(const fs::path& dir, const core::ImageF& image, const seg::L
     ov.labels = &r.mask;
     ov.fill_opacity = 0.25;
     ov.colours = {{1, {255, 200, 0}, "liver"}};
-    const std::pair<tools::SliceAxis, int> views[] = {
-        {tools::SliceAxis::Axial, centre[2]}, {tools::SliceAxis::Coronal, centre[1]}, {tools::SliceAxis::Sagittal, centre[0]}};
+    const std::pair<tools::SliceAxis, int> views[] = {{tools::SliceAxis::Axial, centre[2]},
+                                                      {tools::SliceAxis::Coronal, centre[1]},
+                                                      {tools::SliceAxis::Sagittal, centre[0]}};
     // An MR has no HU: its window spans the 1st to the 99th percentile of a strided sample.
     double window = tools::PictureParams{}.window, level = tools::PictureParams{}.level;
     if (r.modality == seg::Modality::Mr) {
@@ -98,12 +99,14 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.drop_growing_pieces = !o.no_piece_growth;
     p.fill_vessel_inlets = !o.no_vessel_inlets;
     p.trim_dark_rim = !o.no_dark_rim;
+    p.use_heart_model = !o.no_heart_model;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
     p.mr.bias_correction = o.bias_field;
     if (o.no_competition)
         p.snake.competition = seg::CompetitionMode::Off;
-    p.post.convention = o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
+    p.post.convention =
+        o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
     p.modality = o.modality == "ct" ? seg::Modality::Ct : o.modality == "mr" ? seg::Modality::Mr : seg::Modality::Auto;
 
     // The container keeps the image in its own type (a CT stays int16, half the bytes of float).
@@ -111,10 +114,11 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     const core::ImageF volume = core::convert_image<float>(source);
     std::unique_ptr<seg::ShapeMemory> memory;
     if (!o.shape.empty())
-        memory = std::make_unique<seg::ShapeMemory>(timings.time("read shape memory", [&] { return read_shape_memory(o.shape); }));
+        memory = std::make_unique<seg::ShapeMemory>(
+            timings.time("read shape memory", [&] { return read_shape_memory(o.shape); }));
 
-    progress.message("segmenting the liver in " + std::to_string(volume.size[0]) + " x " + std::to_string(volume.size[1]) +
-                     " x " + std::to_string(volume.size[2]) + " voxels");
+    progress.message("segmenting the liver in " + std::to_string(volume.size[0]) + " x " +
+                     std::to_string(volume.size[1]) + " x " + std::to_string(volume.size[2]) + " voxels");
     seg::LiverResult r;
     try {
         r = timings.time("segment", [&] {
@@ -164,6 +168,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.grown_piece_slices", grown);
         param("result.vessel_inlet_voxels", std::to_string(r.vessel_inlet_voxels));
         param("result.dark_rim_voxels", std::to_string(r.dark_rim_voxels));
+        param("result.heart_model_voxels", std::to_string(r.heart_model_voxels));
         param("result.dark_rim_level", fixed(r.dark_rim_level, 1));
         param("result.dark_rim_neighbour", fixed(r.dark_rim_neighbour, 1));
         if (r.bias_corrected)
@@ -174,9 +179,9 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
             std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
                 (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
                 (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
-                (p.use_dome_contact ? "dome-contact " : "") + (p.use_tissue_stop ? "tissue-stop " : "") +
-                (p.use_edge_snap ? "edge-snap " : "") + (p.drop_growing_pieces ? "piece-growth " : "") +
-                (p.trim_dark_rim ? "dark-rim " : "") +
+                (p.use_dome_contact ? "dome-contact " : "") + (p.use_heart_model && ct ? "heart-model " : "") +
+                (p.use_tissue_stop ? "tissue-stop " : "") + (p.use_edge_snap ? "edge-snap " : "") +
+                (p.drop_growing_pieces ? "piece-growth " : "") + (p.trim_dark_rim ? "dark-rim " : "") +
                 (p.fill_vessel_inlets && p.post.convention == seg::LiverConvention::Sliver07 ? "vessel-inlets " : "") +
                 (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                 (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
@@ -207,11 +212,14 @@ Command add_liver(CLI::App& lseg)
                  "(docs/algorithms/liver.md)");
     cmd->add_option("IMAGE", o->image, "Volume: MetaImage, NIfTI, DICOM folder, or a lobe .h5 (see --image-name)")
         ->required();
-    cmd->add_option("-o,--output", o->out, "Output container (.h5): image, labels/liver, labels/liver_slices, provenance")
+    cmd->add_option("-o,--output", o->out,
+                    "Output container (.h5): image, labels/liver, labels/liver_slices, provenance")
         ->required();
     cmd->add_option("--image-name", o->image_name, "Image to read from a .h5 input")->capture_default_str();
-    cmd->add_option("--mask", o->mask_out, "Also write the liver mask as an image (e.g. .mhd or .nii.gz for 3D Slicer)");
-    cmd->add_option("--png", o->png_dir, "Also write axial, coronal and sagittal pictures of the contour into this folder");
+    cmd->add_option("--mask", o->mask_out,
+                    "Also write the liver mask as an image (e.g. .mhd or .nii.gz for 3D Slicer)");
+    cmd->add_option("--png", o->png_dir,
+                    "Also write axial, coronal and sagittal pictures of the contour into this folder");
     cmd->add_option("--shape", o->shape, "Shape memory trained by `lseg train` (without it: a fixed growth bound)");
     cmd->add_option("--convention", o->convention,
                     "sliver07: vessels, tumours and the enclosed IVC are liver | parenchyma: they are not")
@@ -233,7 +241,8 @@ Command add_liver(CLI::App& lseg)
                   "brighter on one side (docs/algorithms/bias_field.md)");
     cmd->add_flag("--no-start-slice", o->no_start_slice, "Ablation: no rotating-template start slice");
     cmd->add_flag("--no-competition", o->no_competition, "Ablation: no energy competition between slices");
-    cmd->add_flag("--no-kmeans", o->no_kmeans, "Ablation: a fixed band around the seed's grey level, not K-means layers");
+    cmd->add_flag("--no-kmeans", o->no_kmeans,
+                  "Ablation: a fixed band around the seed's grey level, not K-means layers");
     cmd->add_flag("--no-rib-cage", o->no_rib_cage, "Ablation: no rib cage ring");
     cmd->add_flag("--no-shape-memory", o->no_shape_memory, "Ablation: ignore --shape");
     cmd->add_flag("--no-3d-pass", o->no_3d_pass, "Ablation: keep the slice-by-slice stack");
@@ -255,6 +264,12 @@ Command add_liver(CLI::App& lseg)
                     "Vessel inlets: radius of the per-slice closing that bridges their mouths [mm]")
         ->capture_default_str()
         ->check(CLI::Range(0.1, 50.0));
+    cmd->add_flag("--no-heart-model", o->no_heart_model,
+                  "Ablation: do not close the heart (its blood pool followed down from the start slice, dilated by "
+                  "the myocardium) to the upward propagation");
+    cmd->add_option("--heart-wall", o->params.heart_wall_mm, "Heart model: myocardium thickness [mm]")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 50.0));
     cmd->add_flag("--no-dark-rim", o->no_dark_rim,
                   "Ablation: keep the layers of darker tissue along the contour's rim (the diaphragm between the "
                   "liver and the ribs)");
@@ -298,7 +313,8 @@ Command add_liver(CLI::App& lseg)
                     "3-D pass, sliver07: radius of the per-slice closing that adds the IVC's concavity [mm]; 0 = none")
         ->capture_default_str()
         ->check(CLI::NonNegativeNumber);
-    return {cmd, [o](const tools::Progress& progress, tools::RunRecord& record) { return run_liver(*o, progress, record); }};
+    return {cmd,
+            [o](const tools::Progress& progress, tools::RunRecord& record) { return run_liver(*o, progress, record); }};
 }
 
 } // namespace lobe::lseg

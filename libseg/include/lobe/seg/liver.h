@@ -38,6 +38,7 @@ struct LiverSliceReport {
     double shape_score = 0;     //!< the memory's score (<= 1 plausible; 0 without a memory)
     std::string shape_reason;   //!< why the memory rejected it
     double above_contact_mm2 = 0; //!< area kept out as lying above a dome contact found below
+    double heart_mm2 = 0;         //!< area kept out as the heart model's (LiverParams::use_heart_model)
     double outside_fraction = 0;  //!< the contour's share outside the liver's grey levels
     bool not_liver = false;       //!< ... above LiverParams::tissue_stop_fraction: the slice is
                                   //!< dropped and the propagation in its direction ends
@@ -166,6 +167,17 @@ struct LiverParams {
     //! liver whose next slice is a thin z-valley (the diaphragm and pericardium between the dome
     //! and the heart, too flat to be an edge in an axial slice) is closed to the liver above it.
     bool use_dome_contact = true;
+    //! The heart model (docs/algorithms/liver.md, "The heart model"): with a start slice, the
+    //! heart's blood pool (brighter than the liver's band by vessel_inlet_sigmas sd, at most
+    //! heart_max_hu) is found nearest the template's heart centre (within heart_search_mm) and
+    //! followed down while its pieces keep heart_min_area_mm2 and heart_min_area_fraction of its
+    //! largest area; dilated in 3-D by heart_wall_mm, it is closed to the upward propagation.
+    bool use_heart_model = true;
+    double heart_wall_mm = 10.0;
+    double heart_max_hu = 400.0;
+    double heart_search_mm = 40.0;
+    double heart_min_area_mm2 = 800.0;
+    double heart_min_area_fraction = 0.15;
     double contact_smoothing_mm = 1.5;     //!< in-plane box half-width before the valley test
     double contact_sigmas = 3.0;           //!< a valley is deeper than this many robust sd of the valley
                                            //!< depth over the liver's columns ...
@@ -221,6 +233,7 @@ struct LiverResult {
     double volume_ml = 0;
     std::size_t vessel_inlet_voxels = 0;  //!< voxels added by LiverParams::fill_vessel_inlets
     std::size_t dark_rim_voxels = 0;      //!< voxels dropped by LiverParams::trim_dark_rim
+    std::size_t heart_model_voxels = 0;   //!< voxels of the heart model (LiverParams::use_heart_model)
     double dark_rim_level = 0;            //!< ... below this smoothed grey level (0: not applied)
     double dark_rim_neighbour = 0;        //!< ... set from this median of the darker tissue outside
     std::vector<LiverSliceReport> slices; //!< one per segmented slice, ascending k
