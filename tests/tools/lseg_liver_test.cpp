@@ -62,6 +62,10 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_NE(parameter(prov.back(), "components").find("vessel-inlets"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("dark-rim"), std::string::npos);
     EXPECT_FALSE(parameter(prov.back(), "result.dark_rim_voxels").empty());
+    // The phantom's CT has a contrast-filled heart under its start slice: the heart model is built.
+    EXPECT_NE(parameter(prov.back(), "components").find("heart-model"), std::string::npos);
+    EXPECT_NE(parameter(prov.back(), "result.heart_model_voxels"), "0");
+    EXPECT_FALSE(parameter(prov.back(), "result.heart_model_voxels").empty());
     EXPECT_FALSE(parameter(prov.back(), "result.slices_above_contact").empty());
     bool timed = false;
     for (const auto& [name, seconds] : prov.back().timings)
@@ -122,9 +126,10 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_NE(r.err.find("--mr-noise"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "g.h5"));
 
-    // The settings of the edge snap, growing pieces, vessel inlets and dark rim: out of range is a bad command line.
+    // The settings of the edge snap, growing pieces, vessel inlets, heart model and dark rim: out of range is a bad
+    // command line.
     for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--vessel-inlet-closing 0",
-                            "--dark-rim-level 0", "--dark-rim-level 1.5"}) {
+                            "--heart-wall -1", "--heart-wall 60", "--dark-rim-level 0", "--dark-rim-level 1.5"}) {
         r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "h.h5") + " " + bad, dir);
         EXPECT_EQ(r.exit_code, 1) << bad << ": " << r.err;
         const std::string option = std::string(bad).substr(0, std::string(bad).find(' '));
