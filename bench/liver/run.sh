@@ -49,6 +49,7 @@ variants=("full|--shape $work/shape.h5"
           "no growing pieces|--shape $work/shape.h5 --no-piece-growth"
           "no vessel inlets|--shape $work/shape.h5 --no-vessel-inlets"
           "no dark rim|--shape $work/shape.h5 --no-dark-rim"
+          "no surface lesions|--shape $work/shape.h5 --no-surface-lesions"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"

@@ -439,6 +439,80 @@ std::size_t fill_vessel_inlets(const Context& c, core::LabelImage3D& mask, const
     return added;
 }
 
+//! Surface lesions (docs/algorithms/liver.md, "Surface lesions"): on each slice of `mask`, the
+//! voxels that a closing with radius `r_mm` adds, with a smoothed grey level in [lo, hi) and
+//! outside `heart` (empty: none), are candidates; a 3-D piece of them (26-connected) is added when
+//! its core, what survives an in-plane opening with radius `core_mm`, holds at least `min_ml` and
+//! at least half its voxels: a lesion is a thick blob, while what else a closing bridges at such
+//! grey levels (partial volume in the liver's notches, a strip of muscle) is thin. Returns the
+//! voxels added.
+std::size_t fill_surface_lesions(const Context& c, core::LabelImage3D& mask, const std::vector<int>& slices,
+                                 double r_mm, double lo, double hi, double core_mm, double min_ml,
+                                 const core::LabelImage3D& heart)
+{
+    core::LabelImage3D cand(mask.geometry(), 0);
+    const int rx = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[0])));
+    const int ry = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[1])));
+    const cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
+    // Slices are independent (each writes its own plane of `cand`).
+#pragma omp parallel for schedule(dynamic)
+    for (std::size_t n = 0; n < slices.size(); ++n) {
+        const int k = slices[n];
+        core::LabelImage3D m = core::axial_slice(mask, k);
+        if (count(m) == 0)
+            continue;
+        const Window w = window_around(m, r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]));
+        core::LabelImage3D mw = crop(m, w);
+        const core::ImageF smooth = gaussian_smooth(crop(slice_image(c, k), w), 1.0);
+        cv::Mat in(mw.size[1], mw.size[0], CV_8U, mw.data.data());
+        cv::Mat closed;
+        cv::morphologyEx(in, closed, cv::MORPH_CLOSE, disc);
+        for (int j = 0; j < in.rows; ++j)
+            for (int i = 0; i < in.cols; ++i) {
+                const double v = smooth.at(i, j, 0);
+                if (closed.at<uchar>(j, i) && !in.at<uchar>(j, i) && v >= lo && v < hi &&
+                    (heart.data.empty() || !heart.at(w.i0 + i, w.j0 + j, k)))
+                    cand.at(w.i0 + i, w.j0 + j, k) = 1;
+            }
+    }
+    const detail::Box b = detail::bounding_box(cand);
+    if (b.empty())
+        return 0;
+    const core::LabelImage3D part = detail::crop(cand, b);
+    const detail::Components comps = detail::connected_components(part, 26);
+    // Each piece's core: what survives an in-plane opening of core_mm radius (a lesion is thick,
+    // a strip of partial volume or muscle is not).
+    const int ox = std::max(1, static_cast<int>(std::lround(core_mm / mask.spacing[0])));
+    const int oy = std::max(1, static_cast<int>(std::lround(core_mm / mask.spacing[1])));
+    const cv::Mat cdisc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * ox + 1, 2 * oy + 1));
+    std::vector<std::size_t> core_size(comps.sizes.size(), 0);
+    for (int k = 0; k < part.size[2]; ++k) {
+        cv::Mat in(part.size[1], part.size[0], CV_8U,
+                   const_cast<std::uint8_t*>(part.data.data() + part.index(0, 0, k)));
+        cv::Mat opened;
+        cv::morphologyEx(in, opened, cv::MORPH_OPEN, cdisc);
+        for (int j = 0; j < part.size[1]; ++j)
+            for (int i = 0; i < part.size[0]; ++i)
+                if (opened.at<uchar>(j, i))
+                    ++core_size[static_cast<std::size_t>(comps.id[part.index(i, j, k)])];
+    }
+    const double voxel_ml = mask.spacing[0] * mask.spacing[1] * mask.spacing[2] / 1000.0;
+    std::size_t added = 0;
+    std::vector<char> keep(comps.sizes.size(), 0);
+    for (std::size_t q = 0; q < comps.sizes.size(); ++q)
+        keep[q] = double(core_size[q]) * voxel_ml >= min_ml && double(core_size[q]) >= 0.5 * double(comps.sizes[q]);
+    for (int k = 0; k < part.size[2]; ++k)
+        for (int j = 0; j < part.size[1]; ++j)
+            for (int i = 0; i < part.size[0]; ++i) {
+                const std::int32_t id = comps.id[part.index(i, j, k)];
+                if (id >= 0 && keep[static_cast<std::size_t>(id)]) {
+                    mask.at(b.lo[0] + i, b.lo[1] + j, b.lo[2] + k) = 1;
+                    ++added;
+                }
+            }
+    return added;
+}
+
 //! The heart over the dome (docs/algorithms/liver.md, "The heart model"): the heart's blood pool,
 //! found on the start slice as the bright (contrast-filled) piece nearest the template's heart
 //! centre and followed down slice by slice while its pieces stay large (the IVC, which leaves the
@@ -869,23 +943,47 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
                                                         cx.band.mean + params.vessel_inlet_sigmas * cx.band.sigma);
         result.timings.emplace_back("vessel inlets", seconds_since(tv));
     }
-    if (params.trim_dark_rim) {
+    const bool lesions = params.fill_surface_lesions && params.post.convention == LiverConvention::Sliver07;
+    const double band_low = cx.band.mean - std::abs(params.tissue_stop_sigmas) * cx.band.sigma;
+    DarkRimResult rim;
+    if (params.trim_dark_rim || lesions) {
         // The contour's rim may hold a layer of darker tissue that it crossed at a weak edge
-        // (the diaphragm between the liver and the ribs): dropped before the 3-D pass.
+        // (the diaphragm between the liver and the ribs): dropped before the 3-D pass. The
+        // surface lesions need its level even when it is off.
         const auto td = Clock::now();
-        const double band_low = cx.band.mean - std::abs(params.tissue_stop_sigmas) * cx.band.sigma;
-        DarkRimResult rim = trim_dark_rim(hu, result.mask, cx.band.mean, band_low, params.dark_rim);
-        result.mask = std::move(rim.mask);
-        result.dark_rim_voxels = rim.removed;
-        result.dark_rim_level = rim.level;
-        result.dark_rim_neighbour = rim.neighbour;
-        result.timings.emplace_back("dark rim", seconds_since(td));
-        if (c.progress && rim.applied) {
+        rim = trim_dark_rim(hu, result.mask, cx.band.mean, band_low, params.dark_rim);
+        if (params.trim_dark_rim) {
+            result.mask = std::move(rim.mask);
+            result.dark_rim_voxels = rim.removed;
+            result.dark_rim_level = rim.level;
+            result.dark_rim_neighbour = rim.neighbour;
+            result.timings.emplace_back("dark rim", seconds_since(td));
+        }
+        if (c.progress && rim.applied && params.trim_dark_rim) {
             std::ostringstream m;
             m.precision(3);
             m << "dark rim: " << rim.removed << " voxels darker than " << rim.level
               << " along the contour's rim dropped (liver " << cx.band.mean << ", darker tissue outside "
               << rim.neighbour << "), " << seconds_since(td) << " s";
+            c.progress(m.str());
+        }
+    }
+    if (lesions && rim.applied && rim.level < band_low) {
+        // A hypodense lesion at the surface is a notch the contour runs round; under SLIVER07 it
+        // is liver, and the tumour step looks only inside the liver.
+        const auto tl = Clock::now();
+        std::vector<int> ks;
+        for (const auto& s : result.slices)
+            ks.push_back(s.slice);
+        result.surface_lesion_voxels =
+            fill_surface_lesions(cx, result.mask, ks, params.surface_lesion_closing_mm, rim.level, band_low,
+                                 params.surface_lesion_core_mm, params.surface_lesion_min_ml, heart);
+        result.timings.emplace_back("surface lesions", seconds_since(tl));
+        if (c.progress) {
+            std::ostringstream m;
+            m.precision(3);
+            m << "surface lesions: " << result.surface_lesion_voxels << " voxels between " << rim.level << " and "
+              << band_low << " in the contour's notches added, " << seconds_since(tl) << " s";
             c.progress(m.str());
         }
     }
@@ -997,6 +1095,15 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
             if (!std::isfinite(v) || v < 0)
                 throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
                                               std::to_string(v));
+    if (params.fill_surface_lesions &&
+        !(params.surface_lesion_closing_mm > 0.0 && std::isfinite(params.surface_lesion_closing_mm) &&
+          params.surface_lesion_core_mm > 0.0 && std::isfinite(params.surface_lesion_core_mm) &&
+          params.surface_lesion_min_ml >= 0.0 && std::isfinite(params.surface_lesion_min_ml)))
+        throw core::InvalidInputError("segment_liver: surface_lesion_closing_mm and surface_lesion_core_mm must be "
+                                      "finite and > 0 and surface_lesion_min_ml finite and >= 0 (are " +
+                                      std::to_string(params.surface_lesion_closing_mm) + ", " +
+                                      std::to_string(params.surface_lesion_core_mm) + ", " +
+                                      std::to_string(params.surface_lesion_min_ml) + ")");
     if (params.fill_vessel_inlets &&
         !(params.vessel_inlet_closing_mm > 0.0 && std::isfinite(params.vessel_inlet_closing_mm) &&
           params.vessel_inlet_sigmas >= 0.0 && std::isfinite(params.vessel_inlet_sigmas)))

@@ -85,7 +85,7 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 } // namespace
 
 // 1.4 x 1.4 x 5 mm, noise seed 3: coarse slices make the heart and kidney contacts blurrier.
-// Measured: Dice 0.907, ASD 2.7 mm, RVD +10.2 %, SLIVER07 score 40.3 (29.0 before the heart model; 0.876, +17.6 % and
+// Measured: Dice 0.908, ASD 2.7 mm, RVD +10.4 %, SLIVER07 score 40.5 (40.3 before the surface lesions, 29.0 before the heart model; 0.876, +17.6 % and
 // 19.2 with the first form of the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap, growing pieces and vessel inlets; the kidney under the
 // liver leaks in; the heart above the dome did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
 TEST(LiverPipeline, CoarsePhantomIsFound)
@@ -104,7 +104,7 @@ TEST(LiverPipeline, CoarsePhantomIsFound)
     EXPECT_LE(m.surface.average, 6.5);
     EXPECT_LE(std::abs(m.rvd), 50.0);
     // The score is low at 5 mm slices (the kidney's volume and distance errors); a bound under
-    // the measured 40.3, which the heart leak of before the dome contact (Dice 0.82) falls below.
+    // the measured 40.5, which the heart leak of before the dome contact (Dice 0.82) falls below.
     // Scores move by several points when a build changes one slice's outcome (liver.md), hence
     // the margin.
     EXPECT_GE(score, 30.0);
@@ -399,8 +399,8 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
 // share of the hepatic veins in the mask, the IVC voxels (not liver) it takes, the maximum
 // surface distance, Dice and the SLIVER07 score. Measured: veins 0.52 -> 0.80, IVC 1 420 -> 2 638
 // voxels (5 % of it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.957 ->
-// 0.963, score 59.3 -> 70.3 (the score: at least 62 and a gain of 5, ten and half under). Bounds:
-// half of each gain, and the IVC under a tenth.
+// 0.963, score 59.3 -> 70.3 (60.2 -> 71.4 with the surface lesions; the score: at least 62 and a
+// gain of 5, ten and half under). Bounds: half of each gain, and the IVC under a tenth.
 TEST(LiverPipeline, VesselInletsAreFilled)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
@@ -438,6 +438,63 @@ TEST(LiverPipeline, VesselInletsAreFilled)
     p.post.convention = seg::LiverConvention::Sliver07;
     p.vessel_inlet_closing_mm = 0.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError) << "no closing radius";
+}
+
+// Surface lesions (LiverParams::fill_surface_lesions): the phantom's boundary tumour (a 13 mm
+// sphere at -30 HU cut by the liver's lateral surface next to the ribs, the thesis's failure case)
+// is a notch the contour runs round; under SLIVER07 it is liver, and the tumour step looks only
+// inside the liver mask. On this phantom (0.8 x 0.8 x 2.5 mm, seed 13; the rule was set on the
+// default phantom) measured: the boundary tumour's voxels in the mask 1 564 -> 3 375 of 5 072,
+// SLIVER07 score 70.3 -> 71.4; the final masks differ by 2 034 voxels, 2 033 of them liver (the
+// rest partial volume at the tumour's edge). Bounds: at least 1 000 more of the tumour's voxels, at
+// least 90 % of the difference on the liver {1..4}, the score not lower; a parenchyma-convention
+// run adds nothing.
+TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
+{
+    const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
+    const auto it = std::find_if(c.info.tumours.begin(), c.info.tumours.end(),
+                                 [](const phantom::TumourTruth& t) { return t.name == "boundary"; });
+    ASSERT_NE(it, c.info.tumours.end());
+    // The boundary tumour's voxels: tumour label within its equivalent radius + 5 mm of its centroid
+    // (the other two tumours lie several centimetres away).
+    const auto boundary_voxels = [&](const core::LabelImage3D& m) {
+        std::size_t n = 0;
+        for (int k = 0; k < m.size[2]; ++k)
+            for (int j = 0; j < m.size[1]; ++j)
+                for (int i = 0; i < m.size[0]; ++i)
+                    if (c.labels.at(i, j, k) == phantom::kTumour && m.at(i, j, k) &&
+                        core::distance(m.index_to_physical(i, j, k), it->centroid) < it->equivalent_radius_mm + 5.0)
+                        ++n;
+        return n;
+    };
+    seg::LiverParams p;
+    const seg::LiverResult on = seg::segment_liver(c.hu, p);
+    p.fill_surface_lesions = false;
+    const seg::LiverResult off = seg::segment_liver(c.hu, p);
+    const std::size_t all = boundary_voxels(c.labels);
+    const std::size_t in_on = boundary_voxels(on.mask), in_off = boundary_voxels(off.mask);
+    std::size_t added = 0, added_liver = 0;
+    for (std::size_t i = 0; i < on.mask.data.size(); ++i)
+        if (on.mask.data[i] && !off.mask.data[i]) {
+            ++added;
+            added_liver += c.truth.data[i] ? 1 : 0;
+        }
+    const double s_on = seg::sliver_score(seg::evaluate_segmentation(on.mask, c.truth)).total;
+    const double s_off = seg::sliver_score(seg::evaluate_segmentation(off.mask, c.truth)).total;
+    std::cerr << "surface lesions: " << on.surface_lesion_voxels << " voxels added; boundary tumour in the mask "
+              << in_off << " -> " << in_on << " of " << all << "; final masks differ by " << added << " voxels, "
+              << added_liver << " of them liver; SLIVER07 score " << s_off << " -> " << s_on << "\n";
+    EXPECT_EQ(off.surface_lesion_voxels, 0u);
+    EXPECT_GT(on.surface_lesion_voxels, 0u);
+    EXPECT_GE(in_on, in_off + 1000);
+    EXPECT_GE(double(added_liver), 0.9 * double(added));
+    EXPECT_GE(s_on, s_off);
+    p.fill_surface_lesions = true;
+    p.post.convention = seg::LiverConvention::Parenchyma;
+    EXPECT_EQ(seg::segment_liver(c.hu, p).surface_lesion_voxels, 0u);
+    p.post.convention = seg::LiverConvention::Sliver07;
+    p.surface_lesion_core_mm = 0.0;
+    EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError) << "no core radius";
 }
 
 // The tissue stop (LiverParams::use_tissue_stop) at the liver's lower tip: on this phantom (1.0 x

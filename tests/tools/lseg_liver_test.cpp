@@ -66,6 +66,8 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_NE(parameter(prov.back(), "components").find("heart-model"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "result.heart_model_voxels"), "0");
     EXPECT_FALSE(parameter(prov.back(), "result.heart_model_voxels").empty());
+    EXPECT_NE(parameter(prov.back(), "components").find("surface-lesions"), std::string::npos);
+    EXPECT_FALSE(parameter(prov.back(), "result.surface_lesion_voxels").empty());
     EXPECT_FALSE(parameter(prov.back(), "result.slices_above_contact").empty());
     bool timed = false;
     for (const auto& [name, seconds] : prov.back().timings)
@@ -126,10 +128,11 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_NE(r.err.find("--mr-noise"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "g.h5"));
 
-    // The settings of the edge snap, growing pieces, vessel inlets, heart model and dark rim: out of range is a bad
-    // command line.
+    // The settings of the edge snap, growing pieces, vessel inlets, heart model, surface lesions and dark rim: out
+    // of range is a bad command line.
     for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--vessel-inlet-closing 0",
-                            "--heart-wall -1", "--heart-wall 60", "--dark-rim-level 0", "--dark-rim-level 1.5"}) {
+                            "--heart-wall -1", "--heart-wall 60",
+                            "--surface-lesion-closing 0", "--dark-rim-level 0", "--dark-rim-level 1.5"}) {
         r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "h.h5") + " " + bad, dir);
         EXPECT_EQ(r.exit_code, 1) << bad << ": " << r.err;
         const std::string option = std::string(bad).substr(0, std::string(bad).find(' '));

@@ -29,7 +29,8 @@ struct LiverOptions {
     bool no_start_slice = false, no_competition = false, no_kmeans = false, no_rib_cage = false,
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
-         no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false;
+         no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
+         no_surface_lesions = false;
     seg::LiverParams params;
 };
 
@@ -99,6 +100,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.drop_growing_pieces = !o.no_piece_growth;
     p.fill_vessel_inlets = !o.no_vessel_inlets;
     p.trim_dark_rim = !o.no_dark_rim;
+    p.fill_surface_lesions = !o.no_surface_lesions;
     p.use_heart_model = !o.no_heart_model;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
@@ -169,6 +171,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.vessel_inlet_voxels", std::to_string(r.vessel_inlet_voxels));
         param("result.dark_rim_voxels", std::to_string(r.dark_rim_voxels));
         param("result.heart_model_voxels", std::to_string(r.heart_model_voxels));
+        param("result.surface_lesion_voxels", std::to_string(r.surface_lesion_voxels));
         param("result.dark_rim_level", fixed(r.dark_rim_level, 1));
         param("result.dark_rim_neighbour", fixed(r.dark_rim_neighbour, 1));
         if (r.bias_corrected)
@@ -183,6 +186,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                 (p.use_tissue_stop ? "tissue-stop " : "") + (p.use_edge_snap ? "edge-snap " : "") +
                 (p.drop_growing_pieces ? "piece-growth " : "") + (p.trim_dark_rim ? "dark-rim " : "") +
                 (p.fill_vessel_inlets && p.post.convention == seg::LiverConvention::Sliver07 ? "vessel-inlets " : "") +
+                (p.fill_surface_lesions && p.post.convention == seg::LiverConvention::Sliver07 ? "surface-lesions "
+                                                                                                 : "") +
                 (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                 (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
@@ -270,6 +275,13 @@ Command add_liver(CLI::App& lseg)
     cmd->add_option("--heart-wall", o->params.heart_wall_mm, "Heart model: myocardium thickness [mm]")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 50.0));
+    cmd->add_flag("--no-surface-lesions", o->no_surface_lesions,
+                  "Ablation: do not add the hypodense lesions in the notches of the liver's surface (SLIVER07 "
+                  "convention only)");
+    cmd->add_option("--surface-lesion-closing", o->params.surface_lesion_closing_mm,
+                    "Surface lesions: radius of the per-slice closing that bridges their notches [mm]")
+        ->capture_default_str()
+        ->check(CLI::Range(0.1, 50.0));
     cmd->add_flag("--no-dark-rim", o->no_dark_rim,
                   "Ablation: keep the layers of darker tissue along the contour's rim (the diaphragm between the "
                   "liver and the ribs)");

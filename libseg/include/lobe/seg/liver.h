@@ -145,6 +145,18 @@ struct LiverParams {
     //! tissue stop's band as the liver's grey level (docs/algorithms/liver.md, "The dark rim").
     bool trim_dark_rim = true;
     DarkRimParams dark_rim;
+    //! Surface lesions (SLIVER07: tumours inside the liver are liver): a hypodense lesion at the
+    //! liver's surface is a notch the contour runs round (the thesis's tumour next to the ribs).
+    //! After the dark rim, the voxels that a closing of each slice with radius
+    //! surface_lesion_closing_mm adds, whose smoothed grey level lies between the dark rim's level
+    //! and the band's low end (darker than liver, not as dark as what surrounds it) and which lie
+    //! outside the heart model, are added where they form thick 3-D pieces: at least half of the
+    //! piece, and at least surface_lesion_min_ml, survives an in-plane opening of radius
+    //! surface_lesion_core_mm (docs/algorithms/liver.md, "Surface lesions"). SLIVER07 only.
+    bool fill_surface_lesions = true;
+    double surface_lesion_closing_mm = 15.0;
+    double surface_lesion_core_mm = 2.5;
+    double surface_lesion_min_ml = 0.5;
     //! Growing pieces: past the liver's widest slice (the slice's area below 0.9 of the largest so
     //! far) its cross-sections shrink towards the dome and the tip, so a separate piece of the
     //! contour (not the largest, and not touching the previous slice's largest piece) whose area
@@ -234,6 +246,7 @@ struct LiverResult {
     std::size_t vessel_inlet_voxels = 0;  //!< voxels added by LiverParams::fill_vessel_inlets
     std::size_t dark_rim_voxels = 0;      //!< voxels dropped by LiverParams::trim_dark_rim
     std::size_t heart_model_voxels = 0;   //!< voxels of the heart model (LiverParams::use_heart_model)
+    std::size_t surface_lesion_voxels = 0; //!< voxels added by LiverParams::fill_surface_lesions
     double dark_rim_level = 0;            //!< ... below this smoothed grey level (0: not applied)
     double dark_rim_neighbour = 0;        //!< ... set from this median of the darker tissue outside
     std::vector<LiverSliceReport> slices; //!< one per segmented slice, ascending k
