@@ -400,6 +400,46 @@ core::LabelImage3D contact_sheet(const Context& c, core::LabelImage3D found)
     return found;
 }
 
+//! Slice k of `mask` cropped to a window `margin_mm` around its voxels, with the slice's image
+//! smoothed (sigma = 1 mm, as the snakes see it) on the same window; `mask` is empty when the
+//! slice holds none.
+struct SliceCrop {
+    Window w;
+    core::LabelImage3D mask;
+    core::ImageF smooth;
+};
+
+SliceCrop crop_slice(const Context& c, const core::LabelImage3D& mask, int k, double margin_mm)
+{
+    SliceCrop s;
+    const core::LabelImage3D m = core::axial_slice(mask, k);
+    if (count(m) == 0)
+        return s;
+    s.w = window_around(m, margin_mm);
+    s.mask = crop(m, s.w);
+    s.smooth = gaussian_smooth(crop(slice_image(c, k), s.w), 1.0);
+    return s;
+}
+
+//! Calls f(k, crop, in) for each slice k of `slices` that holds voxels of `mask`, cropped with
+//! `margin_mm` (`in`: the crop's mask as an OpenCV view), slices in parallel: each f writes only
+//! its own plane. Returns the sum of what f returns.
+template <class F>
+std::size_t for_each_slice_crop(const Context& c, const core::LabelImage3D& mask, const std::vector<int>& slices,
+                                double margin_mm, F f)
+{
+    std::size_t total = 0;
+#pragma omp parallel for schedule(dynamic) reduction(+ : total)
+    for (std::size_t n = 0; n < slices.size(); ++n) {
+        SliceCrop sc = crop_slice(c, mask, slices[n], margin_mm);
+        if (sc.mask.data.empty())
+            continue;
+        cv::Mat in(sc.mask.size[1], sc.mask.size[0], CV_8U, sc.mask.data.data());
+        total += f(slices[n], sc, in);
+    }
+    return total;
+}
+
 //! Vessel inlets (SLIVER07: vessels inside the liver are liver): on each slice of `mask`, the
 //! voxels that a closing with radius `r_mm` adds and whose smoothed grey level is at least `hi`
 //! (contrast-filled vessels), widened by one pixel within the closing for their partial-volume
@@ -407,36 +447,27 @@ core::LabelImage3D contact_sheet(const Context& c, core::LabelImage3D found)
 std::size_t fill_vessel_inlets(const Context& c, core::LabelImage3D& mask, const std::vector<int>& slices, double r_mm,
                                double hi)
 {
-    std::size_t added = 0;
     const int rx = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[0])));
     const int ry = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[1])));
     const cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
-    // Slices are independent (each writes its own plane of `mask`).
-#pragma omp parallel for schedule(dynamic) reduction(+ : added)
-    for (std::size_t n = 0; n < slices.size(); ++n) {
-        const int k = slices[n];
-        core::LabelImage3D m = core::axial_slice(mask, k);
-        if (count(m) == 0)
-            continue;
-        const Window w = window_around(m, r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]));
-        core::LabelImage3D mw = crop(m, w);
-        const core::ImageF smooth = gaussian_smooth(crop(slice_image(c, k), w), 1.0);
-        cv::Mat in(mw.size[1], mw.size[0], CV_8U, mw.data.data());
+    const double margin = r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]);
+    return for_each_slice_crop(c, mask, slices, margin, [&](int k, const SliceCrop& sc, const cv::Mat& in) {
+        std::size_t added = 0;
         cv::Mat closed, bright(in.size(), CV_8U, cv::Scalar(0));
         cv::morphologyEx(in, closed, cv::MORPH_CLOSE, disc);
         for (int j = 0; j < in.rows; ++j)
             for (int i = 0; i < in.cols; ++i)
-                if (closed.at<uchar>(j, i) && !in.at<uchar>(j, i) && double(smooth.at(i, j, 0)) >= hi)
+                if (closed.at<uchar>(j, i) && !in.at<uchar>(j, i) && double(sc.smooth.at(i, j, 0)) >= hi)
                     bright.at<uchar>(j, i) = 1;
         cv::dilate(bright, bright, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)));
         for (int j = 0; j < in.rows; ++j)
             for (int i = 0; i < in.cols; ++i)
                 if (bright.at<uchar>(j, i) && closed.at<uchar>(j, i) && !in.at<uchar>(j, i)) {
-                    mask.at(w.i0 + i, w.j0 + j, k) = 1;
+                    mask.at(sc.w.i0 + i, sc.w.j0 + j, k) = 1;
                     ++added;
                 }
-    }
-    return added;
+        return added;
+    });
 }
 
 //! Surface lesions (docs/algorithms/liver.md, "Surface lesions"): on each slice of `mask`, the
@@ -454,28 +485,20 @@ std::size_t fill_surface_lesions(const Context& c, core::LabelImage3D& mask, con
     // The closing by two exact distance transforms (linear in the pixels; a 15 mm disc as a kernel
     // is 43 x 43 pixels at 0.7 mm), in pixels of the slice's mean in-plane size.
     const double r_px = r_mm / std::sqrt(mask.spacing[0] * mask.spacing[1]);
-    // Slices are independent (each writes its own plane of `cand`).
-#pragma omp parallel for schedule(dynamic)
-    for (std::size_t n = 0; n < slices.size(); ++n) {
-        const int k = slices[n];
-        core::LabelImage3D m = core::axial_slice(mask, k);
-        if (count(m) == 0)
-            continue;
-        const Window w = window_around(m, r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]));
-        core::LabelImage3D mw = crop(m, w);
-        const core::ImageF smooth = gaussian_smooth(crop(slice_image(c, k), w), 1.0);
-        cv::Mat in(mw.size[1], mw.size[0], CV_8U, mw.data.data());
+    const double margin = r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]);
+    for_each_slice_crop(c, mask, slices, margin, [&](int k, const SliceCrop& sc, const cv::Mat& in) {
         cv::Mat to_mask, to_outside;
         cv::distanceTransform(in == 0, to_mask, cv::DIST_L2, cv::DIST_MASK_PRECISE);
         cv::distanceTransform(to_mask <= r_px, to_outside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
         for (int j = 0; j < in.rows; ++j)
             for (int i = 0; i < in.cols; ++i) {
-                const double v = smooth.at(i, j, 0);
-                if (to_outside.at<float>(j, i) > r_px && !in.at<uchar>(j, i) && v >= lo && v < hi &&
-                    (heart.data.empty() || !heart.at(w.i0 + i, w.j0 + j, k)))
-                    cand.at(w.i0 + i, w.j0 + j, k) = 1;
+                const double v = sc.smooth.at(i, j, 0);
+                if (double(to_outside.at<float>(j, i)) > r_px && !in.at<uchar>(j, i) && v >= lo && v < hi &&
+                    (heart.data.empty() || !heart.at(sc.w.i0 + i, sc.w.j0 + j, k)))
+                    cand.at(sc.w.i0 + i, sc.w.j0 + j, k) = 1;
             }
-    }
+        return std::size_t{0};
+    });
     const detail::Box b = detail::bounding_box(cand);
     if (b.empty())
         return 0;
