@@ -470,73 +470,6 @@ std::size_t fill_vessel_inlets(const Context& c, core::LabelImage3D& mask, const
     });
 }
 
-//! Surface lesions (docs/algorithms/liver.md, "Surface lesions"): on each slice of `mask`, the
-//! voxels that a closing with radius `r_mm` adds, with a smoothed grey level in [lo, hi) and
-//! outside `heart` (empty: none), are candidates; a 3-D piece of them (26-connected) is added when
-//! its core, what survives an in-plane opening with radius `core_mm`, holds at least `min_ml` and
-//! at least half its voxels: a lesion is a thick blob, while what else a closing bridges at such
-//! grey levels (partial volume in the liver's notches, a strip of muscle) is thin. Returns the
-//! voxels added.
-std::size_t fill_surface_lesions(const Context& c, core::LabelImage3D& mask, const std::vector<int>& slices,
-                                 double r_mm, double lo, double hi, double core_mm, double min_ml,
-                                 const core::LabelImage3D& heart)
-{
-    core::LabelImage3D cand(mask.geometry(), 0);
-    // The closing by two exact distance transforms (linear in the pixels; a 15 mm disc as a kernel
-    // is 43 x 43 pixels at 0.7 mm), in pixels of the slice's mean in-plane size.
-    const double r_px = r_mm / std::sqrt(mask.spacing[0] * mask.spacing[1]);
-    const double margin = r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]);
-    for_each_slice_crop(c, mask, slices, margin, [&](int k, const SliceCrop& sc, const cv::Mat& in) {
-        cv::Mat to_mask, to_outside;
-        cv::distanceTransform(in == 0, to_mask, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-        cv::distanceTransform(to_mask <= r_px, to_outside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-        for (int j = 0; j < in.rows; ++j)
-            for (int i = 0; i < in.cols; ++i) {
-                const double v = sc.smooth.at(i, j, 0);
-                if (double(to_outside.at<float>(j, i)) > r_px && !in.at<uchar>(j, i) && v >= lo && v < hi &&
-                    (heart.data.empty() || !heart.at(sc.w.i0 + i, sc.w.j0 + j, k)))
-                    cand.at(sc.w.i0 + i, sc.w.j0 + j, k) = 1;
-            }
-        return std::size_t{0};
-    });
-    const detail::Box b = detail::bounding_box(cand);
-    if (b.empty())
-        return 0;
-    const core::LabelImage3D part = detail::crop(cand, b);
-    const detail::Components comps = detail::connected_components(part, 26);
-    // Each piece's core: what survives an in-plane opening of core_mm radius (a lesion is thick,
-    // a strip of partial volume or muscle is not).
-    const int ox = std::max(1, static_cast<int>(std::lround(core_mm / mask.spacing[0])));
-    const int oy = std::max(1, static_cast<int>(std::lround(core_mm / mask.spacing[1])));
-    const cv::Mat cdisc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * ox + 1, 2 * oy + 1));
-    std::vector<std::size_t> core_size(comps.sizes.size(), 0);
-    for (int k = 0; k < part.size[2]; ++k) {
-        cv::Mat in(part.size[1], part.size[0], CV_8U,
-                   const_cast<std::uint8_t*>(part.data.data() + part.index(0, 0, k)));
-        cv::Mat opened;
-        cv::morphologyEx(in, opened, cv::MORPH_OPEN, cdisc);
-        for (int j = 0; j < part.size[1]; ++j)
-            for (int i = 0; i < part.size[0]; ++i)
-                if (opened.at<uchar>(j, i))
-                    ++core_size[static_cast<std::size_t>(comps.id[part.index(i, j, k)])];
-    }
-    const double voxel_ml = mask.spacing[0] * mask.spacing[1] * mask.spacing[2] / 1000.0;
-    std::size_t added = 0;
-    std::vector<char> keep(comps.sizes.size(), 0);
-    for (std::size_t q = 0; q < comps.sizes.size(); ++q)
-        keep[q] = double(core_size[q]) * voxel_ml >= min_ml && double(core_size[q]) >= 0.5 * double(comps.sizes[q]);
-    for (int k = 0; k < part.size[2]; ++k)
-        for (int j = 0; j < part.size[1]; ++j)
-            for (int i = 0; i < part.size[0]; ++i) {
-                const std::int32_t id = comps.id[part.index(i, j, k)];
-                if (id >= 0 && keep[static_cast<std::size_t>(id)]) {
-                    mask.at(b.lo[0] + i, b.lo[1] + j, b.lo[2] + k) = 1;
-                    ++added;
-                }
-            }
-    return added;
-}
-
 //! The heart over the dome (docs/algorithms/liver.md, "The heart model"): the heart's blood pool,
 //! found on the start slice as the bright (contrast-filled) piece nearest the template's heart
 //! centre and followed down slice by slice while its pieces stay large (the IVC, which leaves the
@@ -996,12 +929,10 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         // A hypodense lesion at the surface is a notch the contour runs round; under SLIVER07 it
         // is liver, and the tumour step looks only inside the liver.
         const auto tl = Clock::now();
-        std::vector<int> ks;
-        for (const auto& s : result.slices)
-            ks.push_back(s.slice);
-        result.surface_lesion_voxels =
-            fill_surface_lesions(cx, result.mask, ks, params.surface_lesion_closing_mm, rim.level, band_low,
-                                 params.surface_lesion_core_mm, params.surface_lesion_min_ml, heart);
+        SurfaceLesionResult sl = fill_surface_lesions(hu, result.mask, rim.level, band_low,
+                                                      heart.data.empty() ? nullptr : &heart, params.surface_lesions);
+        result.mask = std::move(sl.mask);
+        result.surface_lesion_voxels = sl.added;
         result.timings.emplace_back("surface lesions", seconds_since(tl));
         if (c.progress) {
             std::ostringstream m;
@@ -1119,15 +1050,15 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
             if (!std::isfinite(v) || v < 0)
                 throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
                                               std::to_string(v));
-    if (params.fill_surface_lesions &&
-        !(params.surface_lesion_closing_mm > 0.0 && std::isfinite(params.surface_lesion_closing_mm) &&
-          params.surface_lesion_core_mm > 0.0 && std::isfinite(params.surface_lesion_core_mm) &&
-          params.surface_lesion_min_ml >= 0.0 && std::isfinite(params.surface_lesion_min_ml)))
-        throw core::InvalidInputError("segment_liver: surface_lesion_closing_mm and surface_lesion_core_mm must be "
-                                      "finite and > 0 and surface_lesion_min_ml finite and >= 0 (are " +
-                                      std::to_string(params.surface_lesion_closing_mm) + ", " +
-                                      std::to_string(params.surface_lesion_core_mm) + ", " +
-                                      std::to_string(params.surface_lesion_min_ml) + ")");
+    if (params.fill_surface_lesions) {
+        // Checked before the work, as the other components' settings are: the pass runs last.
+        const SurfaceLesionParams& sp = params.surface_lesions;
+        const auto ok = [](double v, double low) { return std::isfinite(v) && v >= low; };
+        if (!(sp.closing_mm > 0.0 && sp.core_mm > 0.0 && ok(sp.closing_mm, 0.0) && ok(sp.core_mm, 0.0) &&
+              ok(sp.min_ml, 0.0) && ok(sp.smoothing_mm, 0.0) && sp.core_fraction >= 0.0 && sp.core_fraction <= 1.0))
+            throw core::InvalidInputError("segment_liver: surface_lesions: closing_mm and core_mm must be finite and > 0, "
+                                          "min_ml and smoothing_mm finite and >= 0, core_fraction in [0, 1]");
+    }
     if (params.fill_vessel_inlets &&
         !(params.vessel_inlet_closing_mm > 0.0 && std::isfinite(params.vessel_inlet_closing_mm) &&
           params.vessel_inlet_sigmas >= 0.0 && std::isfinite(params.vessel_inlet_sigmas)))

@@ -493,7 +493,7 @@ TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
     p.post.convention = seg::LiverConvention::Parenchyma;
     EXPECT_EQ(seg::segment_liver(c.hu, p).surface_lesion_voxels, 0u);
     p.post.convention = seg::LiverConvention::Sliver07;
-    p.surface_lesion_core_mm = 0.0;
+    p.surface_lesions.core_mm = 0.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError) << "no core radius";
 }
 

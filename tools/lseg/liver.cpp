@@ -278,7 +278,7 @@ Command add_liver(CLI::App& lseg)
     cmd->add_flag("--no-surface-lesions", o->no_surface_lesions,
                   "Ablation: do not add the hypodense lesions in the notches of the liver's surface (SLIVER07 "
                   "convention only)");
-    cmd->add_option("--surface-lesion-closing", o->params.surface_lesion_closing_mm,
+    cmd->add_option("--surface-lesion-closing", o->params.surface_lesions.closing_mm,
                     "Surface lesions: radius of the per-slice closing that bridges their notches [mm]")
         ->capture_default_str()
         ->check(CLI::Range(0.1, 50.0));

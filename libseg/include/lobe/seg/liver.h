@@ -11,6 +11,7 @@
 #include "lobe/core/image3d.h"
 #include "lobe/seg/bias_field.h"
 #include "lobe/seg/dark_rim.h"
+#include "lobe/seg/surface_lesions.h"
 #include "lobe/seg/kmeans.h"
 #include "lobe/seg/postprocess.h"
 #include "lobe/seg/rib_cage.h"
@@ -147,16 +148,12 @@ struct LiverParams {
     DarkRimParams dark_rim;
     //! Surface lesions (SLIVER07: tumours inside the liver are liver): a hypodense lesion at the
     //! liver's surface is a notch the contour runs round (the thesis's tumour next to the ribs).
-    //! After the dark rim, the voxels that a closing of each slice with radius
-    //! surface_lesion_closing_mm adds, whose smoothed grey level lies between the dark rim's level
-    //! and the band's low end (darker than liver, not as dark as what surrounds it) and which lie
-    //! outside the heart model, are added where they form thick 3-D pieces: at least half of the
-    //! piece, and at least surface_lesion_min_ml, survives an in-plane opening of radius
-    //! surface_lesion_core_mm (docs/algorithms/liver.md, "Surface lesions"). SLIVER07 only.
+    //! After the dark rim, `fill_surface_lesions` adds the thick pieces that a per-slice closing
+    //! bridges between the dark rim's level and the band's low end (darker than liver, not as dark
+    //! as what surrounds it), outside the heart model (docs/algorithms/liver.md, "Surface
+    //! lesions"). SLIVER07 only.
     bool fill_surface_lesions = true;
-    double surface_lesion_closing_mm = 15.0;
-    double surface_lesion_core_mm = 2.5;
-    double surface_lesion_min_ml = 0.5;
+    SurfaceLesionParams surface_lesions;
     //! Growing pieces: past the liver's widest slice (the slice's area below 0.9 of the largest so
     //! far) its cross-sections shrink towards the dome and the tip, so a separate piece of the
     //! contour (not the largest, and not touching the previous slice's largest piece) whose area
