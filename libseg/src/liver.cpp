@@ -400,46 +400,6 @@ core::LabelImage3D contact_sheet(const Context& c, core::LabelImage3D found)
     return found;
 }
 
-//! Slice k of `mask` cropped to a window `margin_mm` around its voxels, with the slice's image
-//! smoothed (sigma = 1 mm, as the snakes see it) on the same window; `mask` is empty when the
-//! slice holds none.
-struct SliceCrop {
-    Window w;
-    core::LabelImage3D mask;
-    core::ImageF smooth;
-};
-
-SliceCrop crop_slice(const Context& c, const core::LabelImage3D& mask, int k, double margin_mm)
-{
-    SliceCrop s;
-    const core::LabelImage3D m = core::axial_slice(mask, k);
-    if (count(m) == 0)
-        return s;
-    s.w = window_around(m, margin_mm);
-    s.mask = crop(m, s.w);
-    s.smooth = gaussian_smooth(crop(slice_image(c, k), s.w), 1.0);
-    return s;
-}
-
-//! Calls f(k, crop, in) for each slice k of `slices` that holds voxels of `mask`, cropped with
-//! `margin_mm` (`in`: the crop's mask as an OpenCV view), slices in parallel: each f writes only
-//! its own plane. Returns the sum of what f returns.
-template <class F>
-std::size_t for_each_slice_crop(const Context& c, const core::LabelImage3D& mask, const std::vector<int>& slices,
-                                double margin_mm, F f)
-{
-    std::size_t total = 0;
-#pragma omp parallel for schedule(dynamic) reduction(+ : total)
-    for (std::size_t n = 0; n < slices.size(); ++n) {
-        SliceCrop sc = crop_slice(c, mask, slices[n], margin_mm);
-        if (sc.mask.data.empty())
-            continue;
-        cv::Mat in(sc.mask.size[1], sc.mask.size[0], CV_8U, sc.mask.data.data());
-        total += f(slices[n], sc, in);
-    }
-    return total;
-}
-
 //! Vessel inlets (SLIVER07: vessels inside the liver are liver): on each slice of `mask`, the
 //! voxels that a closing with radius `r_mm` adds and whose smoothed grey level is at least `hi`
 //! (contrast-filled vessels), widened by one pixel within the closing for their partial-volume
@@ -450,24 +410,33 @@ std::size_t fill_vessel_inlets(const Context& c, core::LabelImage3D& mask, const
     const int rx = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[0])));
     const int ry = std::max(1, static_cast<int>(std::lround(r_mm / mask.spacing[1])));
     const cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
-    const double margin = r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]);
-    return for_each_slice_crop(c, mask, slices, margin, [&](int k, const SliceCrop& sc, const cv::Mat& in) {
-        std::size_t added = 0;
+    std::size_t added = 0;
+    // Slices are independent (each writes its own plane of `mask`).
+#pragma omp parallel for schedule(dynamic) reduction(+ : added)
+    for (std::size_t n = 0; n < slices.size(); ++n) {
+        const int k = slices[n];
+        core::LabelImage3D m = core::axial_slice(mask, k);
+        if (count(m) == 0)
+            continue;
+        const Window w = window_around(m, r_mm + 2.0 * std::max(mask.spacing[0], mask.spacing[1]));
+        core::LabelImage3D mw = crop(m, w);
+        const core::ImageF smooth = gaussian_smooth(crop(slice_image(c, k), w), 1.0);
+        cv::Mat in(mw.size[1], mw.size[0], CV_8U, mw.data.data());
         cv::Mat closed, bright(in.size(), CV_8U, cv::Scalar(0));
         cv::morphologyEx(in, closed, cv::MORPH_CLOSE, disc);
         for (int j = 0; j < in.rows; ++j)
             for (int i = 0; i < in.cols; ++i)
-                if (closed.at<uchar>(j, i) && !in.at<uchar>(j, i) && double(sc.smooth.at(i, j, 0)) >= hi)
+                if (closed.at<uchar>(j, i) && !in.at<uchar>(j, i) && double(smooth.at(i, j, 0)) >= hi)
                     bright.at<uchar>(j, i) = 1;
         cv::dilate(bright, bright, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)));
         for (int j = 0; j < in.rows; ++j)
             for (int i = 0; i < in.cols; ++i)
                 if (bright.at<uchar>(j, i) && closed.at<uchar>(j, i) && !in.at<uchar>(j, i)) {
-                    mask.at(sc.w.i0 + i, sc.w.j0 + j, k) = 1;
+                    mask.at(w.i0 + i, w.j0 + j, k) = 1;
                     ++added;
                 }
-        return added;
-    });
+    }
+    return added;
 }
 
 //! The heart over the dome (docs/algorithms/liver.md, "The heart model"): the heart's blood pool,
@@ -617,22 +586,20 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             paste(dropped, ww, excluded);
         }
     }
-    const bool contact = above_contact && count(*above_contact) > 0;
-    if (contact) {
+    // The columns above a dome contact and the heart model's on this slice are closed too;
+    // returns the area closed.
+    const auto close_off = [&](const core::LabelImage3D* closed) {
+        if (!closed || count(*closed) == 0)
+            return 0.0;
         if (excluded.data.empty())
             excluded = core::LabelImage3D(g, 0);
         for (std::size_t i = 0; i < excluded.data.size(); ++i)
-            excluded.data[i] = excluded.data[i] || above_contact->data[i];
-        out.report.above_contact_mm2 = area_of(*above_contact);
-    }
-    // The heart model's columns on this slice are closed the same way.
-    if (heart && count(*heart) > 0) {
-        if (excluded.data.empty())
-            excluded = core::LabelImage3D(g, 0);
-        for (std::size_t i = 0; i < excluded.data.size(); ++i)
-            excluded.data[i] = excluded.data[i] || heart->data[i];
-        out.report.heart_mm2 = area_of(*heart);
-    }
+            excluded.data[i] = excluded.data[i] || closed->data[i];
+        return area_of(*closed);
+    };
+    out.report.above_contact_mm2 = close_off(above_contact);
+    out.report.heart_mm2 = close_off(heart);
+    const bool contact = out.report.above_contact_mm2 > 0;
     // The snake must not flow back into an excluded organ (or above a dome contact) through its
     // faint contact line: to it the region looks like fat (a strong edge), and the contour is
     // cut there; the start contour leaves it out.
@@ -1050,15 +1017,8 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
             if (!std::isfinite(v) || v < 0)
                 throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
                                               std::to_string(v));
-    if (params.fill_surface_lesions) {
-        // Checked before the work, as the other components' settings are: the pass runs last.
-        const SurfaceLesionParams& sp = params.surface_lesions;
-        const auto ok = [](double v, double low) { return std::isfinite(v) && v >= low; };
-        if (!(sp.closing_mm > 0.0 && sp.core_mm > 0.0 && ok(sp.closing_mm, 0.0) && ok(sp.core_mm, 0.0) &&
-              ok(sp.min_ml, 0.0) && ok(sp.smoothing_mm, 0.0) && sp.core_fraction >= 0.0 && sp.core_fraction <= 1.0))
-            throw core::InvalidInputError("segment_liver: surface_lesions: closing_mm and core_mm must be finite and > 0, "
-                                          "min_ml and smoothing_mm finite and >= 0, core_fraction in [0, 1]");
-    }
+    if (params.fill_surface_lesions)
+        check_surface_lesion_params(params.surface_lesions, "segment_liver: surface_lesions"); // before the work
     if (params.fill_vessel_inlets &&
         !(params.vessel_inlet_closing_mm > 0.0 && std::isfinite(params.vessel_inlet_closing_mm) &&
           params.vessel_inlet_sigmas >= 0.0 && std::isfinite(params.vessel_inlet_sigmas)))

@@ -17,6 +17,16 @@
 
 namespace lobe::seg {
 
+void check_surface_lesion_params(const SurfaceLesionParams& params, const std::string& who)
+{
+    const auto finite_at_least = [](double v, double low) { return std::isfinite(v) && v >= low; };
+    if (!(params.closing_mm > 0.0) || !(params.core_mm > 0.0) || !finite_at_least(params.closing_mm, 0.0) ||
+        !finite_at_least(params.core_mm, 0.0) || !finite_at_least(params.min_ml, 0.0) ||
+        !finite_at_least(params.smoothing_mm, 0.0) || !(params.core_fraction >= 0.0 && params.core_fraction <= 1.0))
+        throw core::InvalidInputError(who + ": closing_mm and core_mm must be finite and > 0, min_ml and smoothing_mm "
+                                            "finite and >= 0, core_fraction in [0, 1]");
+}
+
 SurfaceLesionResult fill_surface_lesions(const core::ImageF& image, const core::LabelImage3D& mask, double lo,
                                          double hi, const core::LabelImage3D* exclude,
                                          const SurfaceLesionParams& params)
@@ -28,12 +38,7 @@ SurfaceLesionResult fill_surface_lesions(const core::ImageF& image, const core::
     if (!std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi))
         throw core::InvalidInputError("fill_surface_lesions: the grey range [lo, hi) must be finite and not empty (is [" +
                                       std::to_string(lo) + ", " + std::to_string(hi) + "))");
-    const auto finite_at_least = [](double v, double low) { return std::isfinite(v) && v >= low; };
-    if (!(params.closing_mm > 0.0) || !(params.core_mm > 0.0) || !finite_at_least(params.closing_mm, 0.0) ||
-        !finite_at_least(params.core_mm, 0.0) || !finite_at_least(params.min_ml, 0.0) ||
-        !finite_at_least(params.smoothing_mm, 0.0) || !(params.core_fraction >= 0.0 && params.core_fraction <= 1.0))
-        throw core::InvalidInputError("fill_surface_lesions: closing_mm and core_mm must be finite and > 0, min_ml "
-                                      "and smoothing_mm finite and >= 0, core_fraction in [0, 1]");
+    check_surface_lesion_params(params, "fill_surface_lesions");
 
     SurfaceLesionResult r;
     r.mask = core::LabelImage3D(mask.geometry(), 0);

@@ -10,6 +10,7 @@
 #include "lobe/core/image3d.h"
 
 #include <cstddef>
+#include <string>
 
 namespace lobe::seg {
 
@@ -41,5 +42,9 @@ struct SurfaceLesionResult {
 SurfaceLesionResult fill_surface_lesions(const core::ImageF& image, const core::LabelImage3D& mask, double lo,
                                          double hi, const core::LabelImage3D* exclude = nullptr,
                                          const SurfaceLesionParams& params = {});
+
+//! Throws InvalidInputError, naming `who`, if `params` is out of the range `fill_surface_lesions`
+//! accepts (so that a caller can refuse it before its own work).
+void check_surface_lesion_params(const SurfaceLesionParams& params, const std::string& who);
 
 } // namespace lobe::seg
