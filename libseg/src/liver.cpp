@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <exception>
 #include <future>
+#include <limits>
 #include <sstream>
 #include <thread>
 
@@ -119,11 +120,24 @@ core::LabelImage3D shrink(const core::LabelImage3D& m, double r_mm)
     return out;
 }
 
+//! What a slice's separate pieces carry to the next slice: per pixel of its mask, the area its
+//! piece had and the largest piece's area when that piece split off (0: the largest piece, or a
+//! piece without a lineage).
+struct PieceLineage {
+    std::vector<float> birth_area, birth_main;
+};
+
 //! Drops from the one-slice mask `m` every separate 8-connected piece (not its largest) that
-//! touches none of the previous slice's largest piece and has more than `limit` times the
-//! pixels of the previous slice's pieces it overlaps. Returns the pixels dropped.
-std::size_t drop_growing_pieces(core::LabelImage3D& m, const core::LabelImage3D& previous, double limit)
+//! touches none of the previous slice's largest piece and either has more than `limit` times the
+//! pixels of the previous slice's pieces it overlaps, or has grown, since it split off, more than
+//! `lineage_limit` times as much as the largest piece (both as a ratio of areas). Drops only when
+//! `past_widest`; the lineage is carried on every slice. `before` is the previous slice's lineage
+//! (empty: none), `after` receives this slice's. Returns the pixels dropped.
+std::size_t drop_growing_pieces(core::LabelImage3D& m, const core::LabelImage3D& previous, const PieceLineage& before,
+                                PieceLineage& after, bool past_widest, double limit, double lineage_limit)
 {
+    after.birth_area.assign(m.data.size(), 0.0f);
+    after.birth_main.assign(m.data.size(), 0.0f);
     cv::Mat cur(m.size[1], m.size[0], CV_8U, m.data.data());
     cv::Mat prev(previous.size[1], previous.size[0], CV_8U, const_cast<std::uint8_t*>(previous.data.data()));
     cv::Mat lc, lp, sc, sp, centroids;
@@ -139,6 +153,10 @@ std::size_t drop_growing_pieces(core::LabelImage3D& m, const core::LabelImage3D&
         return best;
     };
     const int cur_main = largest(sc, nc), prev_main = largest(sp, np);
+    const auto area = [](const cv::Mat& stats, int l) { return double(stats.at<int>(l, cv::CC_STAT_AREA)); };
+    // The previous pieces' lineage (read at any of their pixels: a piece's pixels all hold the same).
+    std::vector<double> prev_birth_area(static_cast<std::size_t>(np), 0.0), prev_birth_main(static_cast<std::size_t>(np), 0.0);
+    const bool has_before = before.birth_area.size() == m.data.size();
     std::vector<std::vector<char>> overlap(static_cast<std::size_t>(nc),
                                            std::vector<char>(static_cast<std::size_t>(np), 0));
     for (int j = 0; j < lc.rows; ++j)
@@ -146,33 +164,59 @@ std::size_t drop_growing_pieces(core::LabelImage3D& m, const core::LabelImage3D&
             const int a = lc.at<int>(j, i), b = lp.at<int>(j, i);
             if (a && b)
                 overlap[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)] = 1;
+            if (b && has_before) {
+                const std::size_t idx = static_cast<std::size_t>(j) * static_cast<std::size_t>(lc.cols) + static_cast<std::size_t>(i);
+                prev_birth_area[static_cast<std::size_t>(b)] = before.birth_area[idx];
+                prev_birth_main[static_cast<std::size_t>(b)] = before.birth_main[idx];
+            }
         }
     std::vector<char> drop(static_cast<std::size_t>(nc), 0);
-    bool any = false;
+    std::vector<double> birth_area(static_cast<std::size_t>(nc), 0.0), birth_main(static_cast<std::size_t>(nc), 0.0);
     for (int l = 1; l < nc; ++l) {
         if (l == cur_main)
             continue;
         const auto& o = overlap[static_cast<std::size_t>(l)];
+        // A piece just split off the main one starts its lineage here.
+        birth_area[static_cast<std::size_t>(l)] = area(sc, l);
+        birth_main[static_cast<std::size_t>(l)] = area(sc, cur_main);
         if (prev_main > 0 && o[static_cast<std::size_t>(prev_main)])
             continue; // split off the main piece on this slice: no predecessor of its own yet
-        double before = 0;
+        double pred = 0, pred_birth = 0, pred_main = 0;
+        bool lineage = true;
         for (int b = 1; b < np; ++b)
-            if (o[static_cast<std::size_t>(b)])
-                before += sp.at<int>(b, cv::CC_STAT_AREA);
-        if (double(sc.at<int>(l, cv::CC_STAT_AREA)) > limit * before) {
-            drop[static_cast<std::size_t>(l)] = 1;
-            any = true;
+            if (o[static_cast<std::size_t>(b)]) {
+                pred += area(sp, b);
+                pred_birth += prev_birth_area[static_cast<std::size_t>(b)];
+                pred_main = std::max(pred_main, prev_birth_main[static_cast<std::size_t>(b)]);
+                lineage = lineage && prev_birth_area[static_cast<std::size_t>(b)] > 0;
+            }
+        if (lineage && pred > 0) {
+            birth_area[static_cast<std::size_t>(l)] = pred_birth;
+            birth_main[static_cast<std::size_t>(l)] = pred_main;
         }
+        // The liver shrinks past its widest slice, all its pieces alike; a neighbour carried
+        // along beside it keeps its own size (the kidney under the tip, at thin slices too,
+        // where it grows by a few per cent a slice).
+        const double own = area(sc, l) / birth_area[static_cast<std::size_t>(l)];
+        const double main = area(sc, cur_main) / birth_main[static_cast<std::size_t>(l)];
+        if (past_widest && (area(sc, l) > limit * pred || own > lineage_limit * main))
+            drop[static_cast<std::size_t>(l)] = 1;
     }
-    if (!any)
-        return 0;
     std::size_t dropped = 0;
     for (int j = 0; j < lc.rows; ++j)
-        for (int i = 0; i < lc.cols; ++i)
-            if (drop[static_cast<std::size_t>(lc.at<int>(j, i))]) {
+        for (int i = 0; i < lc.cols; ++i) {
+            const auto l = static_cast<std::size_t>(lc.at<int>(j, i));
+            if (!l)
+                continue;
+            if (drop[l]) {
                 cur.at<uchar>(j, i) = 0;
                 ++dropped;
+            } else if (static_cast<int>(l) != cur_main) {
+                const std::size_t idx = static_cast<std::size_t>(j) * static_cast<std::size_t>(lc.cols) + static_cast<std::size_t>(i);
+                after.birth_area[idx] = static_cast<float>(birth_area[l]);
+                after.birth_main[idx] = static_cast<float>(birth_main[l]);
             }
+        }
     return dropped;
 }
 
@@ -272,6 +316,7 @@ struct SliceOutcome {
     core::LabelImage3D mask;    // on the slice's geometry; the next slice starts from it
     core::LabelImage3D snapped; // the mask moved on to the edges (empty: as mask); it is stacked
     LiverSliceReport report;
+    PieceLineage lineage; // the mask's separate pieces, for the next slice's growing-pieces rule
     bool stop = false;
 };
 
@@ -286,6 +331,7 @@ struct Context {
     Tissue tissue;                        //!< the liver's grey level (seed slice)
     Tissue band;                          //!< the grey levels under the seed slice's contour
                                           //!< (median, robust sd): the tissue stop's band
+    bool downward = false;                //!< the propagation goes down (towards the tip)
     bool heart_known = false;             //!< the start slice found the heart at heart_i, heart_j
     double heart_i = 0, heart_j = 0;      //!< (continuous voxel index, in-plane)
 };
@@ -526,7 +572,7 @@ core::LabelImage3D heart_model(const Context& c, int lowest, double bright)
 //! Segments slice k from the previous slice's accepted mask, or from the seed (previous null).
 SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& start, const core::LabelImage3D* previous,
                            double largest_area_mm2, const core::LabelImage3D* above_contact = nullptr,
-                           const core::LabelImage3D* heart = nullptr)
+                           const core::LabelImage3D* heart = nullptr, const PieceLineage* lineage = nullptr)
 {
     const LiverParams& p = c.p;
     const auto t0 = Clock::now();
@@ -659,10 +705,15 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         for (std::size_t i = 0; i < out.mask.data.size(); ++i)
             out.mask.data[i] = out.mask.data[i] && !excluded.data[i];
     out.report.area_mm2 = area_of(out.mask);
-    if (previous && p.drop_growing_pieces && out.report.area_mm2 < 0.9 * largest_area_mm2) {
+    if (previous && p.drop_growing_pieces) {
         // Past the widest slice the liver's cross-sections shrink (the dome and the tip are
         // convex); a separate piece that grows is something carried along beside it.
-        out.report.grown_pieces_mm2 = double(drop_growing_pieces(out.mask, templ, p.piece_growth_limit)) * px;
+        const bool past_widest = out.report.area_mm2 < 0.9 * largest_area_mm2;
+        out.report.grown_pieces_mm2 =
+            double(drop_growing_pieces(out.mask, templ, lineage ? *lineage : PieceLineage{}, out.lineage, past_widest,
+                                       p.piece_growth_limit,
+                                       c.downward ? p.piece_lineage_limit : std::numeric_limits<double>::infinity())) *
+            px;
         out.report.area_mm2 = area_of(out.mask);
     }
     if (previous && p.use_tissue_stop) {
@@ -777,6 +828,7 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     std::vector<SliceOutcome> up, down;
     auto run = [&](int step, std::vector<SliceOutcome>& out) {
         const core::LabelImage3D* prev = &first.mask;
+        const PieceLineage* lineage = nullptr;
         double largest = first_area;
         const int end = c.top_slice >= 0 ? std::min(hu.size[2], c.top_slice) : hu.size[2];
         // Upward only: the columns closed by a dome contact found on slice j + 1 (applied from j + 2).
@@ -784,16 +836,19 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         core::LabelImage3D found, closed, pending;
         if (contacts)
             pending = dome_contact(cx, seed_slice, first.mask);
+        Context cd = cx;
+        cd.downward = step < 0;
         for (int k = seed_slice + step; k >= 0 && k < end; k += step) {
             const core::LabelImage3D heart_k =
                 step > 0 && !heart.data.empty() ? core::axial_slice(heart, k) : core::LabelImage3D();
-            SliceOutcome s = segment_slice(cx, k, *prev, prev, largest, closed.data.empty() ? nullptr : &closed,
-                                           heart_k.data.empty() ? nullptr : &heart_k);
+            SliceOutcome s = segment_slice(cd, k, *prev, prev, largest, closed.data.empty() ? nullptr : &closed,
+                                           heart_k.data.empty() ? nullptr : &heart_k, lineage);
             if (s.mask.data.empty())
                 break;
             out.push_back(std::move(s));
             report(cx, out.back().report);
             prev = &out.back().mask;
+            lineage = &out.back().lineage;
             largest = std::max(largest, out.back().report.area_mm2);
             if (out.back().stop)
                 break;
@@ -1037,6 +1092,9 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     if (params.drop_growing_pieces && !(params.piece_growth_limit >= 1.0 && std::isfinite(params.piece_growth_limit)))
         throw core::InvalidInputError("segment_liver: piece_growth_limit must be finite and >= 1, is " +
                                       std::to_string(params.piece_growth_limit));
+    if (params.drop_growing_pieces && !(params.piece_lineage_limit >= 1.0 && std::isfinite(params.piece_lineage_limit)))
+        throw core::InvalidInputError("segment_liver: piece_lineage_limit must be finite and >= 1, is " +
+                                      std::to_string(params.piece_lineage_limit));
     if (params.use_tissue_stop && (!(params.tissue_stop_fraction > 0.0 && params.tissue_stop_fraction <= 1.0) ||
                                    !(params.tissue_stop_sigmas > 0.0) || !std::isfinite(params.tissue_stop_sigmas)))
         throw core::InvalidInputError(

@@ -392,6 +392,32 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }
 
+// Growing pieces, their lineage (LiverParams::piece_lineage_limit): on thinner slices the right
+// kidney, once split off the liver under its tip, grows by only a few per cent a slice, below the
+// per-slice limit, and was carried down to below the tip; since it split off it has grown while
+// the liver beside it shrank. On this phantom (1.0 x 1.0 x 2.5 mm, seed 11; the limit was not
+// chosen on it, liver.md) the lineage rule drops it. Measured: right kidney 15 041 -> 6 796 voxels, Dice
+// 0.943 -> 0.950, SLIVER07 score 58.0 -> 68.1. Bounds: half of each gain.
+TEST(LiverPipeline, KidneyCarriedBesideTheTipIsDropped)
+{
+    const Case c = phantom_case({1.0, 1.0, 2.5}, 11);
+    seg::LiverParams p;
+    const seg::LiverResult on = seg::segment_liver(c.hu, p);
+    p.piece_lineage_limit = 100.0;
+    const seg::LiverResult off = seg::segment_liver(c.hu, p);
+    const auto kidney = [&](const core::LabelImage3D& m) { return voxels_on(m, c.labels, {phantom::kRightKidney}); };
+    const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
+    const auto m_off = seg::evaluate_segmentation(off.mask, c.truth);
+    const double s_on = seg::sliver_score(m_on).total, s_off = seg::sliver_score(m_off).total;
+    std::cerr << "piece lineage: right kidney " << kidney(off.mask) << " -> " << kidney(on.mask) << ", Dice "
+              << m_off.dice << " -> " << m_on.dice << ", score " << s_off << " -> " << s_on << "\n";
+    EXPECT_LT(double(kidney(on.mask)) + 4100.0, double(kidney(off.mask)));
+    EXPECT_GE(m_on.dice, m_off.dice + 0.0035);
+    EXPECT_GE(s_on, s_off + 5.0);
+    p.piece_lineage_limit = 0.9;
+    EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
+}
+
 // Vessel inlets (LiverParams::fill_vessel_inlets, SLIVER07 convention): the hepatic veins run to
 // the IVC, so in a slice they are channels open to the liver's surface, which the contour leaves
 // out and the 3-D pass's hole filling cannot reach; the SLIVER07 truth counts them as liver. On
@@ -630,8 +656,11 @@ TEST(LiverPipeline, MrLiverContrastMap)
 // The MR path end to end on a T1-like phantom (1.4 x 1.4 x 5 mm, noise seed 7, not used
 // elsewhere): detected as MR, seeded inside the liver on the MR's own grey levels (not in the
 // dark, homogeneous lungs that a plain [0, 99th percentile] range picked), segmented on the
-// liver-contrast map. Measured: Dice 0.847, ASD 7.4 mm, RVD -10.9 % (the coarse phantom's heart and
-// kidney contacts, as on its CT: LiverPipeline.CoarsePhantomIsFound).
+// liver-contrast map. Measured: Dice 0.870, ASD 6.0 mm, RVD -15.4 % (the coarse phantom's heart and
+// kidney contacts, as on its CT: LiverPipeline.CoarsePhantomIsFound). The growing pieces' lineage
+// drops the right kidney carried below the tip (8 494 -> 1 936 kidney voxels: Dice 0.846 -> 0.870,
+// ASD 7.4 -> 6.0 mm), which had made up for missed liver in the volume (RVD -7.4 -> -15.4 %); the
+// RVD bound is the measured value plus a third.
 TEST(LiverPipeline, T1LikePhantomIsSegmentedAsMr)
 {
     const Case c = phantom_case({1.4, 1.4, 5.0}, 7);
@@ -644,5 +673,5 @@ TEST(LiverPipeline, T1LikePhantomIsSegmentedAsMr)
     std::cerr << "T1-like phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd << " %\n";
     EXPECT_GE(m.dice, 0.80);
     EXPECT_LE(m.surface.average, 9.5);
-    EXPECT_LE(std::abs(m.rvd), 15.0);
+    EXPECT_LE(std::abs(m.rvd), 20.0);
 }

@@ -296,6 +296,11 @@ Command add_liver(CLI::App& lseg)
                     "Drop a separate piece past the widest slice whose area exceeds this many times its predecessors'")
         ->capture_default_str()
         ->check(CLI::Range(1.0, 100.0));
+    cmd->add_option("--piece-lineage-growth", o->params.piece_lineage_limit,
+                    "Drop a separate piece past the widest slice that, since it split off, grew this many times as "
+                    "much as the largest piece")
+        ->capture_default_str()
+        ->check(CLI::Range(1.0, 100.0));
     cmd->add_flag("--no-edge-snap", o->no_edge_snap,
                   "Ablation: stack the snake's contours as they are, not moved on to the edge ridge");
     cmd->add_option("--snap-band", o->params.snap.band,

@@ -159,9 +159,13 @@ struct LiverParams {
     //! contour (not the largest, and not touching the previous slice's largest piece) whose area
     //! exceeds piece_growth_limit times that of the previous slice's pieces it overlaps is not
     //! liver (the heart wall carried up beside the dome): it is dropped
-    //! (docs/algorithms/liver.md, "Growing pieces").
+    //! (docs/algorithms/liver.md, "Growing pieces"). Such a piece is also dropped when, since it
+    //! split off, its area has grown more than piece_lineage_limit times as much as the largest
+    //! piece's (area ratios): on thin slices a kidney carried along grows by a few per cent a
+    //! slice while the liver beside it shrinks.
     bool drop_growing_pieces = true;
     double piece_growth_limit = 1.15;
+    double piece_lineage_limit = 1.3;
     //! The edge snap: each slice's accepted contour is moved on to the edge ridge by a short
     //! pressure-free run (`snap_to_edges`) before it is stacked; the propagation goes on from the
     //! unsnapped contour. Without it CDSG leaves the contour 1-2 voxels inside the ridge
