@@ -196,7 +196,8 @@ struct LiverParams {
                                            //!< depth over the liver's columns ...
     double contact_min_dip = 5.0;          //!< ... and than this [image units, HU]
     double contact_closing_mm = 2.0;       //!< the valley pixels are closed into a sheet with this radius
-    double contact_min_area_mm2 = 300.0;   //!< smaller sheets are ignored (noise, a small lesion)
+    double contact_min_area_mm2 = 150.0;   //!< smaller pieces of the sheet are ignored (noise specks, more of
+                                           //!< them at thick slices); a ring broken by noise keeps its fragments
     double contact_heart_radius_mm = 70.0; //!< a sheet counts only if its centroid lies within this
                                            //!< in-plane distance of the heart centre found on the start
                                            //!< slice: the contact is the heart's base, and without a start
