@@ -621,7 +621,6 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         // enclosed inside it, and is left out; a lobe cut off by a vessel lies along the rim.
         const core::LabelImage3D dropped = keep_liver_pieces(
             init_w, rim, static_cast<int>(std::ceil(p.min_seed_area_mm2 / px)), p.keep_piece_fraction, p.rim_piece_fraction);
-        if (std::getenv("LOBE_DBG") && count(dropped)) fprintf(stderr, "DBG slice %d dropped pieces %zu px\n", k, count(dropped));
         if (count(init_w) == 0) {
             out.stop = true; // no liver-like tissue left under the previous contour: the liver ended
             return out;
