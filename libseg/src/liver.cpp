@@ -267,6 +267,68 @@ core::LabelImage3D keep_liver_pieces(core::LabelImage3D& m, const core::LabelIma
     return dropped;
 }
 
+//! `m` with its holes filled: what the border cannot reach through the background (4-connected).
+core::LabelImage3D filled(core::LabelImage3D m)
+{
+    cv::Mat padded(m.size[1] + 2, m.size[0] + 2, CV_8U, cv::Scalar(0));
+    cv::Mat(m.size[1], m.size[0], CV_8U, m.data.data()).copyTo(padded(cv::Rect(1, 1, m.size[0], m.size[1])));
+    cv::floodFill(padded, cv::Point(0, 0), cv::Scalar(2), nullptr, cv::Scalar(0), cv::Scalar(0), 4);
+    for (int j = 0; j < m.size[1]; ++j)
+        for (int i = 0; i < m.size[0]; ++i)
+            m.at(i, j, 0) = padded.at<std::uint8_t>(j + 1, i + 1) != 2 ? 1 : 0;
+    return m;
+}
+
+//! Pieces that keep_liver_pieces dropped (`dropped`, taken out of `m`) but that a vessel cut
+//! off: it touches the previous contour's `rim` (a lobe along the surface; a piece enclosed
+//! within the contour stays dropped, an organ or the IVC's partial volume), and the tissue
+//! between it and the kept pieces reads brighter than `hi` in
+//! `smoothed` (median). "Between": the pixels in neither, within reach_mm of both, inside the
+//! previous contour's `outline` with its holes filled (so not the fat outside the liver). A
+//! contrast-filled vein crossing the liver is brighter than the parenchyma on both its sides; an
+//! organ that took the liver's place meets it along a thin dark line (pericardium, capsule) or a
+//! plain step. Such pieces go back into `m` (and out of `dropped`); returns their pixels.
+std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D& dropped, const core::LabelImage3D& rim,
+                                      const core::LabelImage3D& outline, const core::ImageF& smoothed, double hi,
+                                      double reach_mm)
+{
+    const int rx = std::max(1, static_cast<int>(std::lround(reach_mm / m.spacing[0])));
+    const int ry = std::max(1, static_cast<int>(std::lround(reach_mm / m.spacing[1])));
+    const cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
+    const core::LabelImage3D inside = filled(outline);
+    cv::Mat kept(m.size[1], m.size[0], CV_8U, m.data.data()), near_kept;
+    cv::dilate(kept, near_kept, disc);
+    cv::Mat bin(dropped.size[1], dropped.size[0], CV_8U, dropped.data.data()), labels;
+    const int n = cv::connectedComponents(bin, labels, 8, CV_32S);
+    std::vector<std::size_t> back;
+    for (int l = 1; l < n; ++l) {
+        const cv::Mat piece = labels == l;
+        cv::Mat near_piece;
+        cv::dilate(piece, near_piece, disc);
+        std::vector<float> between;
+        bool on_rim = false;
+        for (std::size_t i = 0; i < m.data.size(); ++i) {
+            on_rim = on_rim || (piece.data[i] && rim.data[i]);
+            if (near_piece.data[i] && near_kept.data[i] && inside.data[i] && !m.data[i] && !dropped.data[i])
+                between.push_back(smoothed.data[i]);
+        }
+        if (!on_rim || between.empty())
+            continue;
+        const auto mid = between.begin() + static_cast<std::ptrdiff_t>(between.size() / 2);
+        std::nth_element(between.begin(), mid, between.end());
+        if (double(*mid) <= hi)
+            continue;
+        for (std::size_t i = 0; i < m.data.size(); ++i)
+            if (piece.data[i])
+                back.push_back(i);
+    }
+    for (const std::size_t i : back) {
+        m.data[i] = 1;
+        dropped.data[i] = 0;
+    }
+    return back.size();
+}
+
 //! Edges of a slice that separate tissues of near-equal grey (the heart or kidney lying in a
 //! concavity of the liver behind a thin contact line): hysteresis on the edge map with the
 //! thresholds a few noise levels up (f's median is the noise gradient), widened by one pixel.
@@ -589,7 +651,8 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         templ = on_grid(*previous, g);
         const Window ww = window_around(templ, p.window_margin_mm);
         const core::ImageF img_w = crop(img, ww);
-        const core::LabelImage3D layer = liver_layer(c, gaussian_smooth(img_w, 1.0));
+        const core::ImageF smooth_w = gaussian_smooth(img_w, 1.0);
+        const core::LabelImage3D layer = liver_layer(c, smooth_w);
         if (p.layer_holds_pressure) {
             region = core::LabelImage3D(g, 0);
             paste(layer, ww, region);
@@ -619,8 +682,13 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         // The previous contour, cut along the slice's edges, falls into pieces. An organ that
         // took the liver's place (the heart over the dome, the kidney under it) is a piece
         // enclosed inside it, and is left out; a lobe cut off by a vessel lies along the rim.
-        const core::LabelImage3D dropped = keep_liver_pieces(
+        core::LabelImage3D dropped = keep_liver_pieces(
             init_w, rim, static_cast<int>(std::ceil(p.min_seed_area_mm2 / px)), p.keep_piece_fraction, p.rim_piece_fraction);
+        if (p.keep_vessel_cut_pieces && count(dropped) > 0)
+            out.report.vessel_cut_mm2 =
+                px * double(restore_vessel_cut_pieces(init_w, dropped, rim, crop(templ, ww), smooth_w,
+                                                      c.band.mean + p.tissue_stop_sigmas * c.band.sigma,
+                                                      p.vessel_cut_reach_mm));
         if (count(init_w) == 0) {
             out.stop = true; // no liver-like tissue left under the previous contour: the liver ended
             return out;
@@ -1092,6 +1160,9 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     if (params.drop_growing_pieces && !(params.piece_growth_limit >= 1.0 && std::isfinite(params.piece_growth_limit)))
         throw core::InvalidInputError("segment_liver: piece_growth_limit must be finite and >= 1, is " +
                                       std::to_string(params.piece_growth_limit));
+    if (params.keep_vessel_cut_pieces && !(params.vessel_cut_reach_mm > 0.0 && std::isfinite(params.vessel_cut_reach_mm)))
+        throw core::InvalidInputError("segment_liver: vessel_cut_reach_mm must be finite and > 0, is " +
+                                      std::to_string(params.vessel_cut_reach_mm));
     if (params.drop_growing_pieces && !(params.piece_lineage_limit >= 1.0 && std::isfinite(params.piece_lineage_limit)))
         throw core::InvalidInputError("segment_liver: piece_lineage_limit must be finite and >= 1, is " +
                                       std::to_string(params.piece_lineage_limit));

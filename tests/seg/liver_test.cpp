@@ -446,6 +446,55 @@ TEST(LiverPipeline, KidneyCarriedBesideTheTipIsDropped)
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }
 
+// Vessel-cut pieces (LiverParams::keep_vessel_cut_pieces): going up, a hepatic vein runs from the
+// IVC across the liver, and the previous contour, cut along the vein's edges, falls into the main
+// piece and a wedge behind the vein (the liver between the vein, the IVC and the back). The wedge
+// is small and only a seventh of its border lies on the rim, so it was dropped as an organ would
+// be; what separates it from the main piece is brighter than the liver (the vein), so it now
+// starts the snake. On this phantom (1.0 x 1.0 x 3 mm, seed 4; the rule and reach were set on
+// 0.8 x 0.8 x 2.5 mm, seed 13, liver.md) it acts on three slices. Measured: truth voxels missed
+// 19 241 -> 13 399, voxels outside the truth 35 944 -> 36 571, Dice 0.942 -> 0.948, score 63.9 ->
+// 66.1. Bounds: half of each gain, and at most 2 000 voxels more outside the truth.
+TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
+{
+    const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
+    seg::LiverParams p;
+    const seg::LiverResult on = seg::segment_liver(c.hu, p);
+    p.keep_vessel_cut_pieces = false;
+    const seg::LiverResult off = seg::segment_liver(c.hu, p);
+    const auto missed = [&](const core::LabelImage3D& m) {
+        std::size_t n = 0;
+        for (std::size_t i = 0; i < m.data.size(); ++i)
+            n += !m.data[i] && c.truth.data[i];
+        return double(n);
+    };
+    const auto outside = [&](const core::LabelImage3D& m) {
+        std::size_t n = 0;
+        for (std::size_t i = 0; i < m.data.size(); ++i)
+            n += m.data[i] && !c.truth.data[i];
+        return double(n);
+    };
+    int acted = 0;
+    for (const auto& s : on.slices)
+        acted += s.vessel_cut_mm2 > 0;
+    for (const auto& s : off.slices)
+        EXPECT_EQ(s.vessel_cut_mm2, 0.0);
+    const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
+    const auto m_off = seg::evaluate_segmentation(off.mask, c.truth);
+    const double s_on = seg::sliver_score(m_on).total, s_off = seg::sliver_score(m_off).total;
+    std::cerr << "vessel-cut pieces: acted on " << acted << " slices, missed " << missed(off.mask) << " -> "
+              << missed(on.mask) << ", outside " << outside(off.mask) << " -> " << outside(on.mask) << ", Dice "
+              << m_off.dice << " -> " << m_on.dice << ", score " << s_off << " -> " << s_on << "\n";
+    EXPECT_GE(acted, 1);
+    EXPECT_LT(missed(on.mask) + 2900.0, missed(off.mask));
+    EXPECT_LT(outside(on.mask), outside(off.mask) + 2000.0);
+    EXPECT_GE(m_on.dice, m_off.dice + 0.0029);
+    EXPECT_GE(s_on, s_off + 1.1);
+    p.keep_vessel_cut_pieces = true;
+    p.vessel_cut_reach_mm = 0.0;
+    EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
+}
+
 // Vessel inlets (LiverParams::fill_vessel_inlets, SLIVER07 convention): the hepatic veins run to
 // the IVC, so in a slice they are channels open to the liver's surface, which the contour leaves
 // out and the 3-D pass's hole filling cannot reach; the SLIVER07 truth counts them as liver. On

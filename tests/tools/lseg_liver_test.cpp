@@ -128,9 +128,9 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_NE(r.err.find("--mr-noise"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "g.h5"));
 
-    // The settings of the edge snap, growing pieces, vessel inlets, heart model, surface lesions and dark rim: out
+    // The settings of the edge snap, growing pieces, vessel-cut pieces, vessel inlets, heart model, surface lesions and dark rim: out
     // of range is a bad command line.
-    for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--piece-lineage-growth 0.5", "--vessel-inlet-closing 0",
+    for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--piece-lineage-growth 0.5", "--vessel-cut-reach 0", "--vessel-inlet-closing 0",
                             "--heart-wall -1", "--heart-wall 60",
                             "--surface-lesion-closing 0", "--dark-rim-level 0", "--dark-rim-level 1.5"}) {
         r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "h.h5") + " " + bad, dir);

@@ -30,7 +30,7 @@ struct LiverOptions {
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
          no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
-         no_surface_lesions = false;
+         no_surface_lesions = false, no_vessel_cut_pieces = false;
     seg::LiverParams params;
 };
 
@@ -98,6 +98,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_tissue_stop = !o.no_tissue_stop;
     p.use_edge_snap = !o.no_edge_snap;
     p.drop_growing_pieces = !o.no_piece_growth;
+    p.keep_vessel_cut_pieces = !o.no_vessel_cut_pieces;
     p.fill_vessel_inlets = !o.no_vessel_inlets;
     p.trim_dark_rim = !o.no_dark_rim;
     p.fill_surface_lesions = !o.no_surface_lesions;
@@ -130,12 +131,14 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         throw core::InvalidInputError(o.image.string() + ": " + e.what());
     }
     int rejected = 0, recovered = 0, bounded = 0, above_contact = 0;
-    std::string not_liver, grown;
+    std::string not_liver, grown, vessel_cut;
     for (const auto& s : r.slices) {
         if (s.not_liver)
             not_liver += (not_liver.empty() ? "" : ",") + std::to_string(s.slice);
         if (s.grown_pieces_mm2 > 0)
             grown += (grown.empty() ? "" : ",") + std::to_string(s.slice);
+        if (s.vessel_cut_mm2 > 0)
+            vessel_cut += (vessel_cut.empty() ? "" : ",") + std::to_string(s.slice);
         above_contact += s.above_contact_mm2 > 0;
         rejected += s.rejected;
         recovered += s.recovered;
@@ -168,6 +171,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_above_contact", std::to_string(above_contact));
         param("result.tissue_stop_slices", not_liver);
         param("result.grown_piece_slices", grown);
+        param("result.vessel_cut_piece_slices", vessel_cut);
         param("result.vessel_inlet_voxels", std::to_string(r.vessel_inlet_voxels));
         param("result.dark_rim_voxels", std::to_string(r.dark_rim_voxels));
         param("result.heart_model_voxels", std::to_string(r.heart_model_voxels));
@@ -184,7 +188,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                 (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
                 (p.use_dome_contact ? "dome-contact " : "") + (p.use_heart_model && ct ? "heart-model " : "") +
                 (p.use_tissue_stop ? "tissue-stop " : "") + (p.use_edge_snap ? "edge-snap " : "") +
-                (p.drop_growing_pieces ? "piece-growth " : "") + (p.trim_dark_rim ? "dark-rim " : "") +
+                (p.drop_growing_pieces ? "piece-growth " : "") +
+                (p.keep_vessel_cut_pieces ? "vessel-cut-pieces " : "") + (p.trim_dark_rim ? "dark-rim " : "") +
                 (p.fill_vessel_inlets && p.post.convention == seg::LiverConvention::Sliver07 ? "vessel-inlets " : "") +
                 (p.fill_surface_lesions && p.post.convention == seg::LiverConvention::Sliver07 ? "surface-lesions "
                                                                                                  : "") +
@@ -301,6 +306,14 @@ Command add_liver(CLI::App& lseg)
                     "much as the largest piece")
         ->capture_default_str()
         ->check(CLI::Range(1.0, 100.0));
+    cmd->add_flag("--no-vessel-cut-pieces", o->no_vessel_cut_pieces,
+                  "Ablation: drop the pieces of the previous contour that a vessel cut off (as any small piece "
+                  "inside it)");
+    cmd->add_option("--vessel-cut-reach", o->params.vessel_cut_reach_mm,
+                    "Vessel-cut pieces: the tissue between a piece and the kept ones within this many mm of both "
+                    "must read brighter than the liver's band")
+        ->capture_default_str()
+        ->check(CLI::Range(0.5, 50.0));
     cmd->add_flag("--no-edge-snap", o->no_edge_snap,
                   "Ablation: stack the snake's contours as they are, not moved on to the edge ridge");
     cmd->add_option("--snap-band", o->params.snap.band,

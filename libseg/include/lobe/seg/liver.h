@@ -43,6 +43,8 @@ struct LiverSliceReport {
     double outside_fraction = 0;  //!< the contour's share outside the liver's grey levels
     bool not_liver = false;       //!< ... above LiverParams::tissue_stop_fraction: the slice is
                                   //!< dropped and the propagation in its direction ends
+    double vessel_cut_mm2 = 0;    //!< area of the pieces kept because a vessel cut them off
+                                  //!< (LiverParams::keep_vessel_cut_pieces)
     double grown_pieces_mm2 = 0;  //!< area of the separate pieces dropped because they grew
                                   //!< (LiverParams::drop_growing_pieces)
     double seconds = 0;
@@ -111,6 +113,10 @@ struct LiverParams {
     double rim_piece_fraction = 0.25; //!< ... unless at least this fraction of their border lies
                                     //!< on the previous contour's rim (a lobe along the surface,
                                     //!< not an organ enclosed by edges that touches it at a notch)
+    bool keep_vessel_cut_pieces = true; //!< ... and pieces that a vessel cut off (the tissue
+                                    //!< between them and the kept pieces reads brighter than the
+                                    //!< tissue stop's band) start it too
+    double vessel_cut_reach_mm = 8.0; //!< that tissue: within this of both (half the widest vein)
     bool exclude_dropped_pieces = true; //!< the dropped pieces (organs that took the liver's
                                     //!< place) are also kept out of the slice's contour
     double max_growth_per_mm = 1.6; //!< without a shape memory, the contour moves out at most
