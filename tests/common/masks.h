@@ -16,4 +16,22 @@ inline std::size_t count(const core::LabelImage3D& m)
     return n;
 }
 
+//! Voxels of `m` outside `truth` (false positives), as a double for tolerance arithmetic.
+inline double voxels_outside(const core::LabelImage3D& m, const core::LabelImage3D& truth)
+{
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        n += m.data[i] && !truth.data[i];
+    return double(n);
+}
+
+//! Voxels of `truth` outside `m` (missed), as a double.
+inline double voxels_missed(const core::LabelImage3D& m, const core::LabelImage3D& truth)
+{
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        n += !m.data[i] && truth.data[i];
+    return double(n);
+}
+
 } // namespace lobe::test

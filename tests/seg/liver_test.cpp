@@ -12,6 +12,7 @@
 #include "lobe/seg/metrics.h"
 #include "lobe/seg/shape_memory.h"
 #include "lphantom/phantom.h"
+#include "common/masks.h"
 
 #include <gtest/gtest.h>
 
@@ -237,12 +238,7 @@ TEST(LiverPipeline, HeartModelKeepsTheHeartOutAtThickSlices)
     const auto heart = [&](const core::LabelImage3D& m) {
         return voxels_on(m, c.labels, {phantom::kHeart, phantom::kHeartBlood});
     };
-    const auto missed = [&](const core::LabelImage3D& m) {
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < m.data.size(); ++i)
-            n += c.truth.data[i] && !m.data[i];
-        return n;
-    };
+    const auto missed = [&](const core::LabelImage3D& m) { return test::voxels_missed(m, c.truth); };
     const double d_on = seg::evaluate_segmentation(with.mask, c.truth).dice;
     const double d_off = seg::evaluate_segmentation(without.mask, c.truth).dice;
     std::cerr << "heart model: " << with.heart_model_voxels << " voxels; heart in the mask " << heart(without.mask)
@@ -394,12 +390,7 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
     const seg::LiverResult on = seg::segment_liver(c.hu, p);
     p.drop_growing_pieces = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);
-    const auto outside = [&](const core::LabelImage3D& m) {
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < m.data.size(); ++i)
-            n += m.data[i] && !c.truth.data[i];
-        return n;
-    };
+    const auto outside = [&](const core::LabelImage3D& m) { return test::voxels_outside(m, c.truth); };
     const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
     const auto m_off = seg::evaluate_segmentation(off.mask, c.truth);
     int acted = 0;
@@ -462,18 +453,8 @@ TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
     const seg::LiverResult on = seg::segment_liver(c.hu, p);
     p.keep_vessel_cut_pieces = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);
-    const auto missed = [&](const core::LabelImage3D& m) {
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < m.data.size(); ++i)
-            n += !m.data[i] && c.truth.data[i];
-        return double(n);
-    };
-    const auto outside = [&](const core::LabelImage3D& m) {
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < m.data.size(); ++i)
-            n += m.data[i] && !c.truth.data[i];
-        return double(n);
-    };
+    const auto missed = [&](const core::LabelImage3D& m) { return test::voxels_missed(m, c.truth); };
+    const auto outside = [&](const core::LabelImage3D& m) { return test::voxels_outside(m, c.truth); };
     int acted = 0;
     for (const auto& s : on.slices)
         acted += s.vessel_cut_mm2 > 0;
