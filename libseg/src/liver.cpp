@@ -332,6 +332,21 @@ std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D&
 //! Edges of a slice that separate tissues of near-equal grey (the heart or kidney lying in a
 //! concavity of the liver behind a thin contact line): hysteresis on the edge map with the
 //! thresholds a few noise levels up (f's median is the noise gradient), widened by one pixel.
+//! The pixels of mask `m` whose grey level in `smoothed` lies in [lo, hi], opened by r_mm (a
+//! Euclidean erosion, then a dilation kept inside `m`): what of a contour reads as liver.
+core::LabelImage3D liver_grey_core(const core::LabelImage3D& m, const core::ImageF& smoothed, double lo, double hi,
+                                   double r_mm)
+{
+    core::LabelImage3D in(m.geometry(), 0);
+    for (std::size_t i = 0; i < m.data.size(); ++i)
+        in.data[i] = m.data[i] && double(smoothed.data[i]) >= lo && double(smoothed.data[i]) <= hi ? 1 : 0;
+    if (r_mm > 0)
+        in = grow(shrink(in, r_mm), r_mm);
+    for (std::size_t i = 0; i < in.data.size(); ++i)
+        in.data[i] = in.data[i] && m.data[i] ? 1 : 0;
+    return in;
+}
+
 core::LabelImage3D cut_lines(const core::ImageF& img, const EdgeMapParams& ep)
 {
     const EdgeMapResult e = edge_map(img, ep);
@@ -799,7 +814,19 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
                 outside += v < lo || v > hi;
             }
         out.report.outside_fraction = in ? double(outside) / double(in) : 0.0;
-        if (out.report.outside_fraction > p.tissue_stop_fraction) {
+        if (p.trim_at_tissue_stop && out.report.outside_fraction > p.tissue_stop_fraction) {
+            const core::LabelImage3D core_w =
+                liver_grey_core(mask_w, smooth_w, lo, hi, p.tissue_trim_opening_px * std::max(g.spacing[0], g.spacing[1]));
+            const std::size_t kept = count(core_w);
+            if (double(kept) >= p.tissue_trim_keep * double(in) &&
+                double(kept) * px >= p.tissue_trim_min_area_fraction * largest_area_mm2) {
+                out.report.tissue_trim_mm2 = double(in - kept) * px;
+                std::fill(out.mask.data.begin(), out.mask.data.end(), std::uint8_t(0));
+                paste(core_w, w, out.mask);
+                out.report.area_mm2 = area_of(out.mask);
+            }
+        }
+        if (out.report.tissue_trim_mm2 == 0.0 && out.report.outside_fraction > p.tissue_stop_fraction) {
             out.report.not_liver = true;
             out.stop = true;
             std::fill(out.mask.data.begin(), out.mask.data.end(), std::uint8_t(0));
@@ -850,6 +877,11 @@ void report(const Context& c, const LiverSliceReport& r)
       << (r.not_liver ? ", " + std::to_string(static_cast<int>(std::lround(100 * r.outside_fraction))) +
                             " % outside the liver's grey levels: not liver, the liver ends here"
                       : "")
+      << (r.tissue_trim_mm2 > 0 ? ", " + std::to_string(static_cast<int>(std::lround(100 * r.outside_fraction))) +
+                                      " % outside the liver's grey levels: trimmed to its liver-grey core (" +
+                                      std::to_string(static_cast<int>(std::lround(r.tissue_trim_mm2 / 100))) +
+                                      " cm2 dropped)"
+                                : "")
       << ", " << r.seconds << " s";
     c.progress(s.str());
 }
@@ -1172,6 +1204,14 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
             "segment_liver: tissue_stop_fraction must lie in (0, 1] and tissue_stop_sigmas be "
             "finite and > 0 (are " +
             std::to_string(params.tissue_stop_fraction) + ", " + std::to_string(params.tissue_stop_sigmas) + ")");
+    if (params.use_tissue_stop && params.trim_at_tissue_stop &&
+        (!(params.tissue_trim_keep > 0.0 && params.tissue_trim_keep <= 1.0) || params.tissue_trim_opening_px < 0 ||
+         !(params.tissue_trim_min_area_fraction >= 0.0 && params.tissue_trim_min_area_fraction <= 1.0)))
+        throw core::InvalidInputError("segment_liver: tissue_trim_keep and tissue_trim_min_area_fraction must lie in "
+                                      "(0, 1] and [0, 1], tissue_trim_opening_px be >= 0 (are " +
+                                      std::to_string(params.tissue_trim_keep) + ", " +
+                                      std::to_string(params.tissue_trim_min_area_fraction) + ", " +
+                                      std::to_string(params.tissue_trim_opening_px) + ")");
     const auto t0 = Clock::now();
     auto say = [&](const std::string& s) {
         if (progress)

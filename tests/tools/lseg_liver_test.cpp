@@ -57,6 +57,7 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_EQ(parameter(prov.back(), "result.start_slice.found"), "true");
     EXPECT_NE(parameter(prov.back(), "components").find("dome-contact"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("tissue-stop"), std::string::npos);
+    EXPECT_NE(parameter(prov.back(), "components").find("tissue-trim"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("edge-snap"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("piece-growth"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("vessel-inlets"), std::string::npos);
@@ -128,9 +129,9 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_NE(r.err.find("--mr-noise"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "g.h5"));
 
-    // The settings of the edge snap, growing pieces, vessel-cut pieces, vessel inlets, heart model, surface lesions and dark rim: out
+    // The settings of the edge snap, growing pieces, vessel-cut pieces, tissue trim, vessel inlets, heart model, surface lesions and dark rim: out
     // of range is a bad command line.
-    for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--piece-lineage-growth 0.5", "--vessel-cut-reach 0", "--vessel-inlet-closing 0",
+    for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--piece-lineage-growth 0.5", "--vessel-cut-reach 0", "--tissue-trim-keep 0", "--vessel-inlet-closing 0",
                             "--heart-wall -1", "--heart-wall 60",
                             "--surface-lesion-closing 0", "--dark-rim-level 0", "--dark-rim-level 1.5"}) {
         r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "h.h5") + " " + bad, dir);
@@ -226,4 +227,49 @@ TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
     EXPECT_GE(on, 74.0);
     EXPECT_GE(dropped, 1500.0);
     EXPECT_GE(double(outside), 0.8 * double(removed));
+}
+
+// The real non-contrast CT at hand (../shared/data/ct-small: 122 x 101 x 30, 3 mm; its reference
+// is TotalSegmentator's liver, which reaches the volume's first slice): going down, the contours
+// carry a leak into the fat of the gallbladder fossa and the hilum, and at slice 12 it is 36 % of
+// the contour, so the tissue stop ended the propagation there and the lower right lobe (slices 0
+// to 12, a fifth of the liver) was missed. The tissue trim keeps the contour's liver-grey core and
+// goes on. Measured (no shape memory): first slice 13 -> 0, Dice 0.760 -> 0.849, ASD 6.97 -> 4.24
+// mm (the SLIVER07 score falls, 26.8 -> 10.4: without the lower lobe the missing volume cancelled
+// the leak's in the relative volume difference, 2.7 % -> 27 %; liver.md, "The tissue trim").
+// Bounds: the first slice within two of the volume's, half of the Dice and ASD gains.
+TEST(LsegLiver, TissueTrimFindsTheLowerLiverOfTheRealCt)
+{
+    const fs::path ct = test::data_dir() / "ct-small";
+    LOBE_REQUIRE_PATH(ct / "ct.mhd");
+    const auto dir = test::scratch_dir();
+    struct Run {
+        int first_slice;
+        std::string trimmed;
+        double dice, asd;
+    };
+    const auto run = [&](const std::string& name, const std::string& args) {
+        auto r = run_lseg("liver " + q(ct / "ct.mhd") + " -o " + q(dir / (name + ".h5")) + " --quiet" + args, dir);
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        const auto prov = io::Hdf5Reader(dir / (name + ".h5")).provenance();
+        Run out{-1, {}, -1.0, -1.0};
+        if (prov.empty())
+            return out;
+        out.first_slice = std::stoi(parameter(prov.back(), "result.first_slice"));
+        out.trimmed = parameter(prov.back(), "result.tissue_trim_slices");
+        r = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        out.dice = test::figure_from_eval(r.out, "dice");
+        out.asd = test::figure_from_eval(r.out, "asd_mm");
+        return out;
+    };
+    const Run on = run("on", ""), off = run("off", " --no-tissue-trim");
+    std::cerr << "ct-small: first slice " << off.first_slice << " -> " << on.first_slice << " (trimmed " << on.trimmed
+              << "), Dice " << off.dice << " -> " << on.dice << ", ASD " << off.asd << " -> " << on.asd << " mm\n";
+    EXPECT_FALSE(on.trimmed.empty());
+    EXPECT_TRUE(off.trimmed.empty());
+    EXPECT_LE(on.first_slice, 2);
+    EXPECT_GE(off.first_slice, 10); // the failure the trim removes
+    EXPECT_GE(on.dice, off.dice + 0.045);
+    EXPECT_LE(on.asd, off.asd - 1.3);
 }

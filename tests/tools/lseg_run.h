@@ -24,11 +24,18 @@ inline std::string parameter(const io::Provenance& p, const std::string& key)
     return {};
 }
 
+//! The first figure named `key` ("dice", "asd_mm", ...) in `lseg eval --json` output; -1 if
+//! there is none.
+inline double figure_from_eval(const std::string& out, const std::string& key)
+{
+    const auto at = out.find("\"" + key + "\"");
+    return at == std::string::npos ? -1.0 : std::stod(out.substr(out.find(':', at) + 1));
+}
+
 //! The "dice" figure of `lseg eval --json` output; -1 if there is none.
 inline double dice_from_eval(const std::string& out)
 {
-    const auto at = out.find("\"dice\"");
-    return at == std::string::npos ? -1.0 : std::stod(out.substr(out.find(':', at) + 1));
+    return figure_from_eval(out, "dice");
 }
 
 } // namespace lobe::test

@@ -30,7 +30,7 @@ struct LiverOptions {
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
          no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
-         no_surface_lesions = false, no_vessel_cut_pieces = false;
+         no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false;
     seg::LiverParams params;
 };
 
@@ -96,6 +96,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.use_3d_pass = !o.no_3d_pass;
     p.use_dome_contact = !o.no_dome_contact;
     p.use_tissue_stop = !o.no_tissue_stop;
+    p.trim_at_tissue_stop = !o.no_tissue_trim;
     p.use_edge_snap = !o.no_edge_snap;
     p.drop_growing_pieces = !o.no_piece_growth;
     p.keep_vessel_cut_pieces = !o.no_vessel_cut_pieces;
@@ -131,7 +132,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         throw core::InvalidInputError(o.image.string() + ": " + e.what());
     }
     int rejected = 0, recovered = 0, bounded = 0, above_contact = 0;
-    std::string not_liver, grown, vessel_cut;
+    std::string not_liver, grown, vessel_cut, trimmed;
     for (const auto& s : r.slices) {
         if (s.not_liver)
             not_liver += (not_liver.empty() ? "" : ",") + std::to_string(s.slice);
@@ -139,6 +140,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
             grown += (grown.empty() ? "" : ",") + std::to_string(s.slice);
         if (s.vessel_cut_mm2 > 0)
             vessel_cut += (vessel_cut.empty() ? "" : ",") + std::to_string(s.slice);
+        if (s.tissue_trim_mm2 > 0)
+            trimmed += (trimmed.empty() ? "" : ",") + std::to_string(s.slice);
         above_contact += s.above_contact_mm2 > 0;
         rejected += s.rejected;
         recovered += s.recovered;
@@ -170,6 +173,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_iteration_bound", std::to_string(bounded));
         param("result.slices_above_contact", std::to_string(above_contact));
         param("result.tissue_stop_slices", not_liver);
+        param("result.tissue_trim_slices", trimmed);
         param("result.grown_piece_slices", grown);
         param("result.vessel_cut_piece_slices", vessel_cut);
         param("result.vessel_inlet_voxels", std::to_string(r.vessel_inlet_voxels));
@@ -187,7 +191,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                 (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
                 (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
                 (p.use_dome_contact ? "dome-contact " : "") + (p.use_heart_model && ct ? "heart-model " : "") +
-                (p.use_tissue_stop ? "tissue-stop " : "") + (p.use_edge_snap ? "edge-snap " : "") +
+                (p.use_tissue_stop ? "tissue-stop " : "") +
+                (p.use_tissue_stop && p.trim_at_tissue_stop ? "tissue-trim " : "") + (p.use_edge_snap ? "edge-snap " : "") +
                 (p.drop_growing_pieces ? "piece-growth " : "") +
                 (p.keep_vessel_cut_pieces ? "vessel-cut-pieces " : "") + (p.trim_dark_rim ? "dark-rim " : "") +
                 (p.fill_vessel_inlets && p.post.convention == seg::LiverConvention::Sliver07 ? "vessel-inlets " : "") +
@@ -267,6 +272,14 @@ Command add_liver(CLI::App& lseg)
                     "liver's grey levels")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 1.0));
+    cmd->add_flag("--no-tissue-trim", o->no_tissue_trim,
+                  "Ablation: at the tissue stop, end the propagation instead of keeping the contour's liver-grey "
+                  "core");
+    cmd->add_option("--tissue-trim-keep", o->params.tissue_trim_keep,
+                    "Tissue trim: go on with the contour's liver-grey core if it keeps at least this fraction of the "
+                    "contour")
+        ->capture_default_str()
+        ->check(CLI::Range(0.01, 1.0));
     cmd->add_flag("--no-vessel-inlets", o->no_vessel_inlets,
                   "Ablation: do not add the contrast-filled vessels open to the liver's surface in a slice (SLIVER07 "
                   "convention only)");

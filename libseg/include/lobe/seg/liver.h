@@ -43,6 +43,8 @@ struct LiverSliceReport {
     double outside_fraction = 0;  //!< the contour's share outside the liver's grey levels
     bool not_liver = false;       //!< ... above LiverParams::tissue_stop_fraction: the slice is
                                   //!< dropped and the propagation in its direction ends
+    double tissue_trim_mm2 = 0;   //!< area the tissue trim took out of the contour (the rest,
+                                  //!< its liver-grey core, was kept: LiverParams::trim_at_tissue_stop)
     double vessel_cut_mm2 = 0;    //!< area of the pieces kept because a vessel cut them off
                                   //!< (LiverParams::keep_vessel_cut_pieces)
     double grown_pieces_mm2 = 0;  //!< area of the separate pieces dropped because they grew
@@ -138,6 +140,19 @@ struct LiverParams {
     bool use_tissue_stop = true;
     double tissue_stop_fraction = 0.35;
     double tissue_stop_sigmas = 2.5;
+    //! Before the tissue stop ends a direction, the contour is trimmed to its liver-grey core:
+    //! the pixels inside the band, opened by tissue_trim_opening_px pixels (the speckle and the
+    //! thin bridges the band test leaves go). If the core keeps at least tissue_trim_keep of the
+    //! contour and covers at least tissue_trim_min_area_fraction of the largest slice's area, it
+    //! is the slice's contour and the propagation goes on: a leak carried down from the slices
+    //! above (fat, the gallbladder fossa) pushed the fraction up, not the liver's end. Otherwise
+    //! the slice is dropped as before. The area bound keeps the trim off the liver's tips, where a
+    //! neighbour of the liver's grey (a kidney) is as large as the liver's last slices and would
+    //! be followed (docs/algorithms/liver.md, "The tissue trim").
+    bool trim_at_tissue_stop = true;
+    double tissue_trim_keep = 0.4;
+    double tissue_trim_min_area_fraction = 0.1;
+    int tissue_trim_opening_px = 2;
     //! Vessel inlets (SLIVER07 convention only): after the propagation, on each slice, the voxels
     //! a closing of the contour with radius vessel_inlet_closing_mm adds and whose grey level
     //! (smoothed, sigma 1 mm) lies above the liver's band by more than vessel_inlet_sigmas sd are
