@@ -52,6 +52,7 @@ variants=("full|--shape $work/shape.h5"
           "no vessel inlets|--shape $work/shape.h5 --no-vessel-inlets"
           "no dark rim|--shape $work/shape.h5 --no-dark-rim"
           "no surface lesions|--shape $work/shape.h5 --no-surface-lesions"
+          "no wall margin|--shape $work/shape.h5 --no-wall-margin"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"

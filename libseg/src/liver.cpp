@@ -1189,6 +1189,9 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
         throw core::InvalidInputError("segment_liver: the heart model needs heart_wall_mm >= 0, heart_search_mm > 0, "
                                       "heart_min_area_mm2 >= 0, heart_min_area_fraction in [0, 1] and a finite "
                                       "heart_max_hu");
+    if (!(params.wall_margin_mm >= 0.0 && std::isfinite(params.wall_margin_mm)))
+        throw core::InvalidInputError("segment_liver: wall_margin_mm must be finite and >= 0, is " +
+                                      std::to_string(params.wall_margin_mm));
     if (params.drop_growing_pieces && !(params.piece_growth_limit >= 1.0 && std::isfinite(params.piece_growth_limit)))
         throw core::InvalidInputError("segment_liver: piece_growth_limit must be finite and >= 1, is " +
                                       std::to_string(params.piece_growth_limit));
@@ -1234,7 +1237,9 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     if (use_ribs)
         rib_job = std::async(std::launch::async, [&] {
             const auto tr = Clock::now();
-            RibCageResult rc = rib_cage(hu, params.ribs);
+            RibCageParams rp = params.ribs;
+            rp.wall_width_mm = params.wall_margin_mm; // the wall margin's band, built with the ring
+            RibCageResult rc = rib_cage(hu, rp);
             rib_seconds = seconds_since(tr);
             return rc;
         });
@@ -1336,6 +1341,20 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
         t = Clock::now();
         r.mask = postprocess_liver(r.stacked, params.post);
         lap("3-D pass", t);
+    }
+    if (use_ribs && params.wall_margin_mm > 0) {
+        // The wall margin: the diaphragm and intercostal layer under the ribs, which no edge
+        // separates from the liver on a non-contrast or thick-slice scan (liver.md).
+        t = Clock::now();
+        for (std::size_t i = 0; i < r.mask.data.size(); ++i)
+            if (ribs.wall.data[i] && r.mask.data[i]) {
+                r.mask.data[i] = 0;
+                ++r.wall_margin_voxels;
+            }
+        lap("wall margin", t);
+        if (r.wall_margin_voxels > 0)
+            say("wall margin: " + std::to_string(r.wall_margin_voxels) + " voxels within " +
+                std::to_string(static_cast<int>(std::lround(params.wall_margin_mm))) + " mm of the ribs dropped");
     }
     r.volume_ml = volume_ml(r.mask);
     if (r.volume_ml <= 0)

@@ -25,6 +25,8 @@ void check_params(const RibCageParams& p)
         bad("slices_to_combine must be >= 1, got " + std::to_string(p.slices_to_combine));
     if (!(p.enhance_width_mm >= 0.0) || !std::isfinite(p.enhance_width_mm))
         bad("enhance_width_mm must be finite and >= 0");
+    if (!(p.wall_width_mm >= 0.0) || !std::isfinite(p.wall_width_mm))
+        bad("wall_width_mm must be finite and >= 0");
     if (p.angles < 16 || p.angles > 7200)
         bad("angles must be in 16..7200, got " + std::to_string(p.angles));
     if (!(p.max_gap_deg >= 0.0 && p.max_gap_deg <= 360.0))
@@ -109,12 +111,13 @@ void drop_small(cv::Mat& bone, double min_px)
 //! One slice: `hu` (the slice itself, for the body) and `bone` (the overlapped bone of the
 //! neighbouring slices) → `inside` and `ring`.
 SliceRing ring_of_slice(const cv::Mat& hu, const cv::Mat& bone, double sx, double sy, const RibCageParams& p,
-                        cv::Mat& inside, cv::Mat& ring)
+                        cv::Mat& inside, cv::Mat& ring, cv::Mat& wall)
 {
     SliceRing res;
     const int nx = hu.cols, ny = hu.rows;
     inside.setTo(1);
     ring.setTo(0);
+    wall.setTo(0);
     const cv::Mat body = body_mask(hu, p.body_hu);
     const cv::Moments m = cv::moments(body, true);
     if (m.m00 < 1.0)
@@ -208,12 +211,15 @@ SliceRing ring_of_slice(const cv::Mat& hu, const cv::Mat& bone, double sx, doubl
     inside.setTo(0);
     cv::fillPoly(inside, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(1), cv::LINE_8, kShift);
 
-    // The band: inside, within enhance_width_mm of the outside, on supported rays.
-    if (p.enhance_width_mm > 0.0) {
+    // The bands: inside, within enhance_width_mm (ring) or wall_width_mm (wall) of the outside,
+    // on supported rays.
+    if (p.enhance_width_mm > 0.0 || p.wall_width_mm > 0.0) {
         cv::Mat dist;
         cv::distanceTransform(inside, dist, cv::DIST_L2, cv::DIST_MASK_5); // ~2 % error: ample for a band
         const double px_mm = std::sqrt(sx * sy); // in-plane spacing is near isotropic in CT
-        const float limit = static_cast<float>(p.enhance_width_mm / px_mm + 0.5);
+        const float ring_limit = p.enhance_width_mm > 0.0 ? static_cast<float>(p.enhance_width_mm / px_mm + 0.5) : 0.f;
+        const float wall_limit = p.wall_width_mm > 0.0 ? static_cast<float>(p.wall_width_mm / px_mm) : 0.f;
+        const float limit = std::max(ring_limit, wall_limit);
         for (int j = 0; j < ny; ++j)
             for (int i = 0; i < nx; ++i) {
                 const float d = dist.at<float>(j, i);
@@ -223,8 +229,12 @@ SliceRing ring_of_slice(const cv::Mat& hu, const cv::Mat& bone, double sx, doubl
                 if (th < 0)
                     th += 2.0 * kPi;
                 const int a = static_cast<int>(std::lround(th * na / (2.0 * kPi))) % na;
-                if (supported[static_cast<std::size_t>(a)])
+                if (!supported[static_cast<std::size_t>(a)])
+                    continue;
+                if (d <= ring_limit)
                     ring.at<std::uint8_t>(j, i) = 1;
+                if (d <= wall_limit)
+                    wall.at<std::uint8_t>(j, i) = 1;
             }
     }
     return res;
@@ -253,6 +263,7 @@ RibCageResult rib_cage(const core::ImageF& hu_volume, const RibCageParams& param
     RibCageResult r;
     r.inside = core::LabelImage3D(hu_volume.geometry(), 1);
     r.ring = core::LabelImage3D(hu_volume.geometry(), 0);
+    r.wall = core::LabelImage3D(hu_volume.geometry(), 0);
     r.valid.assign(static_cast<std::size_t>(nz), 0);
     r.coverage.assign(static_cast<std::size_t>(nz), 0.0);
     r.rings.assign(static_cast<std::size_t>(nz), RibRing{});
@@ -276,13 +287,16 @@ RibCageResult rib_cage(const core::ImageF& hu_volume, const RibCageParams& param
         drop_small(slab, params.min_bone_area_mm2 / (hu_volume.spacing[0] * hu_volume.spacing[1]));
         cv::Mat inside(ny, nx, CV_8U, r.inside.data.data() + off);
         cv::Mat ring(ny, nx, CV_8U, r.ring.data.data() + off);
-        const SliceRing s = ring_of_slice(hu, slab, hu_volume.spacing[0], hu_volume.spacing[1], params, inside, ring);
+        cv::Mat wall(ny, nx, CV_8U, r.wall.data.data() + off);
+        const SliceRing s =
+            ring_of_slice(hu, slab, hu_volume.spacing[0], hu_volume.spacing[1], params, inside, ring, wall);
         r.valid[static_cast<std::size_t>(k)] = s.valid ? 1 : 0;
         r.coverage[static_cast<std::size_t>(k)] = s.coverage;
         r.rings[static_cast<std::size_t>(k)] = s.ring;
         if (!s.valid) {
             inside.setTo(1);
             ring.setTo(0);
+            wall.setTo(0);
         }
     }
     return r;

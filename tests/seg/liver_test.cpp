@@ -678,6 +678,47 @@ TEST(LiverPipeline, TissueTrimKeepsTheDomeAtThickSlices)
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }
 
+// The wall margin (1.2 x 1.2 x 5 mm, seed 17): at thick slices the contours take the subcostal
+// layer and the wall muscle between the liver and the ribs (65 and 50 HU against the liver's
+// 105, blurred into one another); dropping what lies within 6 mm inside the rib ring removes
+// most of it and no liver. Measured: subcostal layer in the mask 5 979 -> 1 955 voxels (wall
+// muscle and other soft tissue 4 333 -> 3 254), 5 446 voxels dropped of which 0 liver, Dice
+// 0.928 -> 0.941, score 57.3 -> 63.6. The phantom's subcostal layer is 6 mm thick by
+// construction, so the bounds below are loose where they rest on the phantom (half the layer
+// gone, fewer than 2 % liver among the dropped voxels) and the gains are asserted at a third.
+TEST(LiverPipeline, WallMarginDropsTheLayerUnderTheRibs)
+{
+    const Case c = phantom_case({1.2, 1.2, 5.0}, 17);
+    seg::LiverParams p;
+    const seg::LiverResult with = seg::segment_liver(c.hu, p);
+    p.wall_margin_mm = 0.0;
+    const seg::LiverResult without = seg::segment_liver(c.hu, p);
+    const auto wall = [&](const core::LabelImage3D& m) { return voxels_on(m, c.labels, {phantom::kSubcostal}); };
+    const auto soft = [&](const core::LabelImage3D& m) { return voxels_on(m, c.labels, {phantom::kSoftTissue}); };
+    std::size_t dropped = 0, dropped_liver = 0, added = 0;
+    for (std::size_t i = 0; i < with.mask.data.size(); ++i) {
+        dropped += without.mask.data[i] && !with.mask.data[i];
+        dropped_liver += without.mask.data[i] && !with.mask.data[i] && c.truth.data[i];
+        added += with.mask.data[i] && !without.mask.data[i];
+    }
+    const auto m_on = seg::evaluate_segmentation(with.mask, c.truth);
+    const auto m_off = seg::evaluate_segmentation(without.mask, c.truth);
+    const double s_on = seg::sliver_score(m_on).total, s_off = seg::sliver_score(m_off).total;
+    std::cerr << "wall margin: subcostal layer in the mask " << wall(without.mask) << " -> " << wall(with.mask)
+              << ", muscle and other soft tissue " << soft(without.mask) << " -> " << soft(with.mask) << ", "
+              << with.wall_margin_voxels << " voxels dropped (" << dropped_liver << " liver), Dice " << m_off.dice
+              << " -> " << m_on.dice << ", score " << s_off << " -> " << s_on << "\n";
+    EXPECT_EQ(without.wall_margin_voxels, 0u);
+    EXPECT_EQ(dropped, with.wall_margin_voxels) << "the margin only drops, after everything else";
+    EXPECT_EQ(added, 0u);
+    EXPECT_LT(2 * wall(with.mask), wall(without.mask));
+    EXPECT_LT(double(dropped_liver), 0.02 * double(dropped));
+    EXPECT_GE(m_on.dice, m_off.dice + 0.004);
+    EXPECT_GE(s_on, s_off + 2.0);
+    p.wall_margin_mm = -1.0;
+    EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
+}
+
 TEST(LiverPipeline, PropagationChecksItsSeed)
 {
     core::ImageGeometry g;

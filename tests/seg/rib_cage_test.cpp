@@ -169,6 +169,50 @@ TEST(RibCage, RingFollowsTheInnerRibSurface)
     }
 }
 
+// The wall band (the liver pipeline's wall margin): off by default; at 6 mm it holds the voxels
+// that lie, along their ray, 0 to 6 mm inside the ring where bone supports it, and none on the
+// open anterior rays or in the organ (>= 11 mm inside the ring). The depth bound allows the
+// distance transform's ~2 % error, the ellipse's slant between ray and normal (the radial depth
+// exceeds the normal one by up to 1/cos 17° = 1.05) and 1 mm for the 1 mm pixels; the cover is
+// asserted on rays that meet bone, between 1 and 5 mm deep (measured: every such voxel).
+TEST(RibCage, WallBandLiesWithinItsWidthInsideTheRing)
+{
+    const Torso t = torso(340, 8);
+    EXPECT_TRUE(all_equal(seg::rib_cage(t.hu).wall, 0)) << "no wall band unless asked for";
+    seg::RibCageParams p;
+    p.wall_width_mm = 6.0;
+    const auto r = seg::rib_cage(t.hu, p);
+    const core::ImageGeometry& g = t.hu.geometry();
+    std::size_t wall = 0, deep = 0, open = 0, organ = 0, mid = 0, mid_in = 0;
+    for (int k = 0; k < g.size[2]; ++k) {
+        const auto& ring = r.rings[static_cast<std::size_t>(k)];
+        for (int j = 0; j < g.size[1]; ++j)
+            for (int i = 0; i < g.size[0]; ++i) {
+                const std::size_t q = t.hu.index(i, j, k);
+                const std::size_t a = ray_of(ring, i, j, g);
+                const double depth =
+                    double(ring.radius_mm[a]) - std::hypot((i - ring.centre_i) * g.spacing[0], (j - ring.centre_j) * g.spacing[1]);
+                if (r.wall.data[q]) {
+                    ++wall;
+                    ASSERT_EQ(r.inside.data[q], 1);
+                    deep += depth > 6.0 * 1.02 * 1.05 + 1.0;
+                    open += ring.supported[a] == 0;
+                    organ += t.organ.data[q];
+                }
+                if (ring.supported[a] == 1 && depth >= 1.0 && depth <= 5.0) {
+                    ++mid;
+                    mid_in += r.wall.data[q];
+                }
+            }
+    }
+    std::cout << "wall band: " << wall << " voxels, " << mid_in << " of " << mid << " at 1-5 mm on bone rays\n";
+    EXPECT_GT(wall, 8u * 3000u) << "a 6 mm band round ~270° of a 700 mm ring on 8 slices";
+    EXPECT_EQ(deep, 0u);
+    EXPECT_EQ(open, 0u) << "no ribs, no wall";
+    EXPECT_EQ(organ, 0u);
+    EXPECT_GE(double(mid_in), 0.99 * double(mid));
+}
+
 // Bright blobs inside the body do not move the ring: one beyond which a rib lies (the outermost
 // bone wins), and one in the open anterior sector 70 mm under the skin (deeper than
 // max_depth_mm = 60: a contrast-filled loop, not a rib).
@@ -267,6 +311,8 @@ TEST(RibCage, BadParametersAreRefused)
     expect_throw([](seg::RibCageParams& p) { p.angles = 4; });
     expect_throw([](seg::RibCageParams& p) { p.min_coverage = 1.5; });
     expect_throw([](seg::RibCageParams& p) { p.enhance_width_mm = -1; });
+    expect_throw([](seg::RibCageParams& p) { p.wall_width_mm = -1; });
+    expect_throw([](seg::RibCageParams& p) { p.wall_width_mm = std::numeric_limits<double>::quiet_NaN(); });
     expect_throw([](seg::RibCageParams& p) { p.max_depth_mm = 0; });
     core::ImageF broken = t.hu;
     broken.data.pop_back();

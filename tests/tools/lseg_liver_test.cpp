@@ -69,6 +69,8 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_FALSE(parameter(prov.back(), "result.heart_model_voxels").empty());
     EXPECT_NE(parameter(prov.back(), "components").find("surface-lesions"), std::string::npos);
     EXPECT_FALSE(parameter(prov.back(), "result.surface_lesion_voxels").empty());
+    EXPECT_NE(parameter(prov.back(), "components").find("wall-margin"), std::string::npos);
+    EXPECT_FALSE(parameter(prov.back(), "result.wall_margin_voxels").empty());
     EXPECT_FALSE(parameter(prov.back(), "result.slices_above_contact").empty());
     bool timed = false;
     for (const auto& [name, seconds] : prov.back().timings)
@@ -129,11 +131,12 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_NE(r.err.find("--mr-noise"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "g.h5"));
 
-    // The settings of the edge snap, growing pieces, vessel-cut pieces, tissue trim, vessel inlets, heart model, surface lesions and dark rim: out
+    // The settings of the edge snap, growing pieces, vessel-cut pieces, tissue trim, vessel inlets, heart model, surface lesions, dark rim and wall margin: out
     // of range is a bad command line.
     for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--piece-lineage-growth 0.5", "--vessel-cut-reach 0", "--tissue-trim-keep 0", "--vessel-inlet-closing 0",
                             "--heart-wall -1", "--heart-wall 60",
-                            "--surface-lesion-closing 0", "--dark-rim-level 0", "--dark-rim-level 1.5"}) {
+                            "--surface-lesion-closing 0", "--dark-rim-level 0", "--dark-rim-level 1.5",
+                            "--wall-margin -1", "--wall-margin 40"}) {
         r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "h.h5") + " " + bad, dir);
         EXPECT_EQ(r.exit_code, 1) << bad << ": " << r.err;
         const std::string option = std::string(bad).substr(0, std::string(bad).find(' '));
@@ -184,9 +187,10 @@ TEST(LsegLiver, SegmentsTheRealMrAsMr)
 // The real contrast CT at hand (../shared/data/ct-dicom-jpeg2000: 512 x 512 x 20, 0.98 x 0.98 x
 // 2 mm; its reference is TotalSegmentator's liver): every slice's contour holds a layer of the
 // diaphragm and intercostal muscle (about 40 HU against the liver's 96) between the liver and the
-// ribs, which the dark rim drops. Measured (no shape memory): SLIVER07 score 71.3 -> 76.0, 7 800
-// voxels dropped, 91 % of the voxels the final masks differ by outside the reference. Bounds: a gain of
-// at least 2 points and a score of at least 74, a fifth of the drop and 80 % outside.
+// ribs, which the dark rim drops. Both runs leave out the wall margin, which takes part of the same
+// layer afterwards (with it: 78.9 -> 80.5). Measured (no shape memory): SLIVER07 score 71.3 -> 76.0,
+// 7 800 voxels dropped, 91 % of the voxels the final masks differ by outside the reference. Bounds:
+// a gain of at least 2 points and a score of at least 74, a fifth of the drop and 80 % outside.
 TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
 {
     const fs::path ct = test::data_dir() / "ct-dicom-jpeg2000";
@@ -198,11 +202,13 @@ TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
         const auto at = r.out.find("\"total\""); // the overall SLIVER07 score
         return at == std::string::npos ? -1.0 : std::stod(r.out.substr(r.out.find(':', at) + 1));
     };
-    auto r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "on.h5") + " --mask " + q(dir / "on.mhd"), dir);
+    auto r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "on.h5") + " --mask " + q(dir / "on.mhd") +
+                          " --no-wall-margin",
+                      dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find("dark rim: "), std::string::npos) << r.err;
     r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "off.h5") + " --mask " + q(dir / "off.mhd") +
-                     " --no-dark-rim --quiet",
+                     " --no-dark-rim --no-wall-margin --quiet",
                  dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const double on = score(dir / "on.h5"), off = score(dir / "off.h5");
@@ -227,6 +233,57 @@ TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
     EXPECT_GE(on, 74.0);
     EXPECT_GE(dropped, 1500.0);
     EXPECT_GE(double(outside), 0.8 * double(removed));
+}
+
+// The same CT: after the dark rim, a strip of muscle and partial volume a few pixels wide is
+// left along the lateral wall just above the rim's level (about 53 HU); it lies within 6 mm of
+// the ribs' inner surface, where the reference has under 1 % of its liver. Measured (no shape
+// memory): score 76.0 -> 80.5, 9 714 voxels dropped, 72 % of them outside the reference (the rest,
+// 0.7 % of the reference's liver, is its rim nearest the ribs). Bounds: a gain of 2 points, a
+// score of 77, 60 % of the dropped voxels outside (most of what it drops is not liver).
+TEST(LsegLiver, WallMarginDropsTheWallUnderTheRibsOfTheRealCt)
+{
+    const fs::path ct = test::data_dir() / "ct-dicom-jpeg2000";
+    LOBE_REQUIRE_PATH(ct / "dicom");
+    const auto dir = test::scratch_dir();
+    auto r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "on.h5") + " --mask " + q(dir / "on.mhd"), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("wall margin: "), std::string::npos) << r.err;
+    r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "off.h5") + " --mask " + q(dir / "off.mhd") +
+                     " --no-wall-margin --quiet",
+                 dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto score = [&](const fs::path& h5) {
+        const auto e = run_lseg("eval " + q(h5) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
+        EXPECT_EQ(e.exit_code, 0) << e.err;
+        return test::figure_from_eval(e.out, "total");
+    };
+    const double on = score(dir / "on.h5"), off = score(dir / "off.h5");
+    const auto prov = io::Hdf5Reader(dir / "on.h5").provenance();
+    ASSERT_FALSE(prov.empty());
+    const std::size_t dropped = std::stoul(parameter(prov.back(), "result.wall_margin_voxels"));
+    EXPECT_EQ(parameter(io::Hdf5Reader(dir / "off.h5").provenance().back(), "components").find("wall-margin"),
+              std::string::npos);
+    const auto mask_on = io::read_image(dir / "on.mhd"), mask_off = io::read_image(dir / "off.mhd"),
+               ref = io::read_image(ct / "liver.mhd");
+    const auto& a = std::get<core::LabelImage3D>(mask_on).data;
+    const auto& b = std::get<core::LabelImage3D>(mask_off).data;
+    const auto& truth = std::get<core::LabelImage3D>(ref).data;
+    std::size_t removed = 0, outside = 0, added = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        added += a[i] && !b[i];
+        if (b[i] && !a[i]) {
+            ++removed;
+            outside += truth[i] == 0;
+        }
+    }
+    std::cerr << "ct-dicom: score " << off << " -> " << on << ", wall margin " << dropped << " voxels, "
+              << double(outside) / double(std::max<std::size_t>(removed, 1)) << " of them outside the reference\n";
+    EXPECT_EQ(removed, dropped) << "the margin is the last step: it only drops";
+    EXPECT_EQ(added, 0u);
+    EXPECT_GE(on, off + 2.0);
+    EXPECT_GE(on, 77.0);
+    EXPECT_GE(double(outside), 0.6 * double(removed));
 }
 
 // The real non-contrast CT at hand (../shared/data/ct-small: 122 x 101 x 30, 3 mm; its reference

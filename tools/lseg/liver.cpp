@@ -30,7 +30,7 @@ struct LiverOptions {
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
          no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
-         no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false;
+         no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false, no_wall_margin = false;
     seg::LiverParams params;
 };
 
@@ -103,6 +103,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.fill_vessel_inlets = !o.no_vessel_inlets;
     p.trim_dark_rim = !o.no_dark_rim;
     p.fill_surface_lesions = !o.no_surface_lesions;
+    if (o.no_wall_margin)
+        p.wall_margin_mm = 0.0;
     p.use_heart_model = !o.no_heart_model;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
@@ -180,6 +182,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.dark_rim_voxels", std::to_string(r.dark_rim_voxels));
         param("result.heart_model_voxels", std::to_string(r.heart_model_voxels));
         param("result.surface_lesion_voxels", std::to_string(r.surface_lesion_voxels));
+        param("result.wall_margin_voxels", std::to_string(r.wall_margin_voxels));
         param("result.dark_rim_level", fixed(r.dark_rim_level, 1));
         param("result.dark_rim_neighbour", fixed(r.dark_rim_neighbour, 1));
         if (r.bias_corrected)
@@ -198,7 +201,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                 (p.fill_vessel_inlets && p.post.convention == seg::LiverConvention::Sliver07 ? "vessel-inlets " : "") +
                 (p.fill_surface_lesions && p.post.convention == seg::LiverConvention::Sliver07 ? "surface-lesions "
                                                                                                  : "") +
-                (p.use_3d_pass ? "3d-pass " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
+                (p.use_3d_pass ? "3d-pass " : "") +
+                (p.use_rib_cage && ct && p.wall_margin_mm > 0 ? "wall-margin " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                 (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
         io::Hdf5Writer h5(o.out);
         h5.write_image("image", source);
@@ -300,6 +304,12 @@ Command add_liver(CLI::App& lseg)
                     "Surface lesions: radius of the per-slice closing that bridges their notches [mm]")
         ->capture_default_str()
         ->check(CLI::Range(0.1, 50.0));
+    cmd->add_flag("--no-wall-margin", o->no_wall_margin,
+                  "Ablation: keep the voxels just inside the ribs (the diaphragm and intercostal layer)");
+    cmd->add_option("--wall-margin", o->params.wall_margin_mm,
+                    "Wall margin: drop the voxels within this distance inside the rib cage ring [mm]")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 30.0));
     cmd->add_flag("--no-dark-rim", o->no_dark_rim,
                   "Ablation: keep the layers of darker tissue along the contour's rim (the diaphragm between the "
                   "liver and the ribs)");

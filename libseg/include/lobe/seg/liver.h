@@ -232,6 +232,12 @@ struct LiverParams {
     bool use_shape_memory = true;   //!< check each slice against the memory, when one is given
     bool use_3d_pass = true;        //!< smooth the stack, fill holes, apply the convention
     double rib_background_hu = -100.0; //!< what lies outside the rib cage becomes (fat)
+    //! The wall margin: after the 3-D pass, the voxels within this distance inside the rib cage
+    //! ring, where bone or a bridged gap supports it, are dropped (0: off; needs the rib cage).
+    //! The ring is the ribs' inner surface, and between it and the liver lie the diaphragm's
+    //! costal part and the innermost intercostal layer, tissue of the liver's grey level in a
+    //! non-contrast or thick-slice scan (docs/algorithms/liver.md, "The wall margin").
+    double wall_margin_mm = 6.0;
     int min_slices = 5;             //!< fewer slices: refuse (a volume, not a slice, is needed)
     Modality modality = Modality::Auto; //!< CT, MR, or detected (detect_modality)
     double ct_air_fraction = 1e-3;      //!< Auto: CT if at least this fraction of voxels is below -500
@@ -270,6 +276,7 @@ struct LiverResult {
     std::size_t dark_rim_voxels = 0;      //!< voxels dropped by LiverParams::trim_dark_rim
     std::size_t heart_model_voxels = 0;   //!< voxels of the heart model (LiverParams::use_heart_model)
     std::size_t surface_lesion_voxels = 0; //!< voxels added by LiverParams::fill_surface_lesions
+    std::size_t wall_margin_voxels = 0;   //!< voxels dropped by LiverParams::wall_margin_mm
     double dark_rim_level = 0;            //!< ... below this smoothed grey level (0: not applied)
     double dark_rim_neighbour = 0;        //!< ... set from this median of the darker tissue outside
     std::vector<LiverSliceReport> slices; //!< one per segmented slice, ascending k

@@ -23,6 +23,7 @@ struct RibCageParams {
     int slices_to_combine = 4;    //!< slices whose bone is overlapped (thesis: 4), centred on the
                                   //!< slice: k - (n-1)/2 .. k + n/2, clipped to the volume
     double enhance_width_mm = 3.0; //!< width of the band inside the ring (the `ring` output) [mm]
+    double wall_width_mm = 0.0;   //!< width of the `wall` band inside the ring [mm]; 0: none
     double body_hu = -400.0;      //!< the body is the largest region above this [HU], holes filled
     int angles = 360;             //!< rays cast from the body's centroid (angular resolution)
     double max_gap_deg = 40.0;    //!< angular gaps without bone up to this are bridged by linear
@@ -52,6 +53,9 @@ struct RibCageResult {
                                   //!< constraint), and beyond wide gaps 1 up to the image border
     core::LabelImage3D ring;      //!< 1 in the band of `enhance_width_mm` just inside the ring,
                                   //!< where the ring is supported by bone or a bridged gap
+    core::LabelImage3D wall;      //!< 1 within `wall_width_mm` inside the ring where it is supported
+                                  //!< (the body wall: intercostal muscle and diaphragm); all 0
+                                  //!< when wall_width_mm is 0
     std::vector<std::uint8_t> valid; //!< per slice: 1 if a ring could be formed
     std::vector<double> coverage; //!< per slice: fraction of the turn covered by bone or bridged gaps
     std::vector<RibRing> rings;   //!< per slice (empty rays when no body was found)
