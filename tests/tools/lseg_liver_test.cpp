@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <tuple>
+#include <utility>
 
 using namespace lobe;
 namespace fs = std::filesystem;
@@ -19,6 +21,53 @@ using test::q;
 using test::run_lseg;
 using test::parameter;
 
+//! One component on and off on ../shared/data/ct-dicom-jpeg2000 (`lseg liver` with `on_args`,
+//! then with `off_args`): both SLIVER07 scores against its reference, the "on" run's provenance
+//! parameter `count_key`, and how the final masks differ.
+struct OnOff {
+    double on = -1, off = -1;     //!< scores
+    double count = -1;            //!< the "on" run's count_key
+    std::string err;              //!< the "on" run's stderr (its progress)
+    std::size_t removed = 0;      //!< voxels in "off" only
+    std::size_t removed_outside = 0; //!< ... of them outside the reference
+    std::size_t added = 0;        //!< voxels in "on" only
+};
+
+OnOff ct_dicom_on_off(const fs::path& ct, const fs::path& dir, const std::string& on_args,
+                      const std::string& off_args, const std::string& count_key)
+{
+    OnOff o;
+    const auto run = [&](const std::string& name, const std::string& args) {
+        const auto r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / (name + ".h5")) + " --mask " +
+                                    q(dir / (name + ".mhd")) + " " + args,
+                                dir);
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        const auto e = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
+        EXPECT_EQ(e.exit_code, 0) << e.err;
+        return std::make_pair(r.err, test::figure_from_eval(e.out, "total")); // the overall SLIVER07 score
+    };
+    double on_score = 0;
+    std::tie(o.err, on_score) = run("on", on_args);
+    o.on = on_score;
+    o.off = run("off", off_args).second;
+    const auto prov = io::Hdf5Reader(dir / "on.h5").provenance();
+    if (prov.empty())
+        return o;
+    o.count = std::stod(parameter(prov.back(), count_key));
+    const auto mask_on = io::read_image(dir / "on.mhd"), mask_off = io::read_image(dir / "off.mhd"),
+               ref = io::read_image(ct / "liver.mhd");
+    const auto& a = std::get<core::LabelImage3D>(mask_on).data;
+    const auto& b = std::get<core::LabelImage3D>(mask_off).data;
+    const auto& truth = std::get<core::LabelImage3D>(ref).data;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        o.added += a[i] && !b[i];
+        if (b[i] && !a[i]) {
+            ++o.removed;
+            o.removed_outside += truth[i] == 0;
+        }
+    }
+    return o;
+}
 
 } // namespace
 
@@ -195,44 +244,17 @@ TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
 {
     const fs::path ct = test::data_dir() / "ct-dicom-jpeg2000";
     LOBE_REQUIRE_PATH(ct / "dicom");
-    const auto dir = test::scratch_dir();
-    const auto score = [&](const fs::path& h5) {
-        const auto r = run_lseg("eval " + q(h5) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
-        EXPECT_EQ(r.exit_code, 0) << r.err;
-        const auto at = r.out.find("\"total\""); // the overall SLIVER07 score
-        return at == std::string::npos ? -1.0 : std::stod(r.out.substr(r.out.find(':', at) + 1));
-    };
-    auto r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "on.h5") + " --mask " + q(dir / "on.mhd") +
-                          " --no-wall-margin",
-                      dir);
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_NE(r.err.find("dark rim: "), std::string::npos) << r.err;
-    r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "off.h5") + " --mask " + q(dir / "off.mhd") +
-                     " --no-dark-rim --no-wall-margin --quiet",
-                 dir);
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    const double on = score(dir / "on.h5"), off = score(dir / "off.h5");
-    const auto prov = io::Hdf5Reader(dir / "on.h5").provenance();
-    ASSERT_FALSE(prov.empty());
-    const double dropped = std::stod(parameter(prov.back(), "result.dark_rim_voxels"));
-    const auto mask_on = io::read_image(dir / "on.mhd"), mask_off = io::read_image(dir / "off.mhd"),
-               ref = io::read_image(ct / "liver.mhd");
-    const auto& a = std::get<core::LabelImage3D>(mask_on).data;
-    const auto& b = std::get<core::LabelImage3D>(mask_off).data;
-    const auto& truth = std::get<core::LabelImage3D>(ref).data;
-    std::size_t removed = 0, outside = 0;
-    for (std::size_t i = 0; i < a.size(); ++i)
-        if (b[i] && !a[i]) {
-            ++removed;
-            outside += truth[i] == 0;
-        }
-    std::cerr << "ct-dicom: score " << off << " -> " << on << ", dark rim " << dropped
-              << " voxels, final masks differ by " << removed << " voxels, "
-              << double(outside) / double(std::max<std::size_t>(removed, 1)) << " of them outside the reference\n";
-    EXPECT_GE(on, off + 2.0);
-    EXPECT_GE(on, 74.0);
-    EXPECT_GE(dropped, 1500.0);
-    EXPECT_GE(double(outside), 0.8 * double(removed));
+    const OnOff o = ct_dicom_on_off(ct, test::scratch_dir(), "--no-wall-margin",
+                                    "--no-dark-rim --no-wall-margin --quiet", "result.dark_rim_voxels");
+    std::cerr << "ct-dicom: score " << o.off << " -> " << o.on << ", dark rim " << o.count
+              << " voxels, final masks differ by " << o.removed << " voxels, "
+              << double(o.removed_outside) / double(std::max<std::size_t>(o.removed, 1))
+              << " of them outside the reference\n";
+    EXPECT_NE(o.err.find("dark rim: "), std::string::npos) << o.err;
+    EXPECT_GE(o.on, o.off + 2.0);
+    EXPECT_GE(o.on, 74.0);
+    EXPECT_GE(o.count, 1500.0);
+    EXPECT_GE(double(o.removed_outside), 0.8 * double(o.removed));
 }
 
 // The same CT: after the dark rim, a strip of muscle and partial volume a few pixels wide is
@@ -246,44 +268,18 @@ TEST(LsegLiver, WallMarginDropsTheWallUnderTheRibsOfTheRealCt)
     const fs::path ct = test::data_dir() / "ct-dicom-jpeg2000";
     LOBE_REQUIRE_PATH(ct / "dicom");
     const auto dir = test::scratch_dir();
-    auto r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "on.h5") + " --mask " + q(dir / "on.mhd"), dir);
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_NE(r.err.find("wall margin: "), std::string::npos) << r.err;
-    r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / "off.h5") + " --mask " + q(dir / "off.mhd") +
-                     " --no-wall-margin --quiet",
-                 dir);
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    const auto score = [&](const fs::path& h5) {
-        const auto e = run_lseg("eval " + q(h5) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
-        EXPECT_EQ(e.exit_code, 0) << e.err;
-        return test::figure_from_eval(e.out, "total");
-    };
-    const double on = score(dir / "on.h5"), off = score(dir / "off.h5");
-    const auto prov = io::Hdf5Reader(dir / "on.h5").provenance();
-    ASSERT_FALSE(prov.empty());
-    const std::size_t dropped = std::stoul(parameter(prov.back(), "result.wall_margin_voxels"));
+    const OnOff o = ct_dicom_on_off(ct, dir, "", "--no-wall-margin --quiet", "result.wall_margin_voxels");
+    std::cerr << "ct-dicom: score " << o.off << " -> " << o.on << ", wall margin " << o.count << " voxels, "
+              << double(o.removed_outside) / double(std::max<std::size_t>(o.removed, 1))
+              << " of them outside the reference\n";
+    EXPECT_NE(o.err.find("wall margin: "), std::string::npos) << o.err;
     EXPECT_EQ(parameter(io::Hdf5Reader(dir / "off.h5").provenance().back(), "components").find("wall-margin"),
               std::string::npos);
-    const auto mask_on = io::read_image(dir / "on.mhd"), mask_off = io::read_image(dir / "off.mhd"),
-               ref = io::read_image(ct / "liver.mhd");
-    const auto& a = std::get<core::LabelImage3D>(mask_on).data;
-    const auto& b = std::get<core::LabelImage3D>(mask_off).data;
-    const auto& truth = std::get<core::LabelImage3D>(ref).data;
-    std::size_t removed = 0, outside = 0, added = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) {
-        added += a[i] && !b[i];
-        if (b[i] && !a[i]) {
-            ++removed;
-            outside += truth[i] == 0;
-        }
-    }
-    std::cerr << "ct-dicom: score " << off << " -> " << on << ", wall margin " << dropped << " voxels, "
-              << double(outside) / double(std::max<std::size_t>(removed, 1)) << " of them outside the reference\n";
-    EXPECT_EQ(removed, dropped) << "the margin is the last step: it only drops";
-    EXPECT_EQ(added, 0u);
-    EXPECT_GE(on, off + 2.0);
-    EXPECT_GE(on, 77.0);
-    EXPECT_GE(double(outside), 0.6 * double(removed));
+    EXPECT_EQ(double(o.removed), o.count) << "the margin is the last step: it only drops";
+    EXPECT_EQ(o.added, 0u);
+    EXPECT_GE(o.on, o.off + 2.0);
+    EXPECT_GE(o.on, 77.0);
+    EXPECT_GE(double(o.removed_outside), 0.6 * double(o.removed));
 }
 
 // The real non-contrast CT at hand (../shared/data/ct-small: 122 x 101 x 30, 3 mm; its reference
