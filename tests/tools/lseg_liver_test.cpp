@@ -46,9 +46,7 @@ OnOff ct_dicom_on_off(const fs::path& ct, const fs::path& dir, const std::string
         EXPECT_EQ(e.exit_code, 0) << e.err;
         return std::make_pair(r.err, test::figure_from_eval(e.out, "total")); // the overall SLIVER07 score
     };
-    double on_score = 0;
-    std::tie(o.err, on_score) = run("on", on_args);
-    o.on = on_score;
+    std::tie(o.err, o.on) = run("on", on_args);
     o.off = run("off", off_args).second;
     const auto prov = io::Hdf5Reader(dir / "on.h5").provenance();
     if (prov.empty())
