@@ -119,10 +119,13 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_NE(parameter(prov.back(), "components").find("wall-margin"), std::string::npos);
     EXPECT_FALSE(parameter(prov.back(), "result.wall_margin_voxels").empty());
     EXPECT_FALSE(parameter(prov.back(), "result.slices_above_contact").empty());
-    bool timed = false;
-    for (const auto& [name, seconds] : prov.back().timings)
+    bool timed = false, image_timed = false;
+    for (const auto& [name, seconds] : prov.back().timings) {
         timed = timed || (name == "liver.propagate" && seconds > 0);
+        image_timed = image_timed || (name == "write image (beside segment)" && seconds > 0);
+    }
     EXPECT_TRUE(timed);
+    EXPECT_TRUE(image_timed);
 
     r = run_lseg("eval " + q(out) + " " + q(dir / "ph" / "labels.mhd") + " --seg-name liver --ref-label 1,2,3,4 --json",
                  dir);
@@ -154,6 +157,10 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     EXPECT_NE(r.err.find("no liver found"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir / "b.h5"));
     EXPECT_FALSE(fs::exists(dir / "b.mhd"));
+    // The container is opened, and the image written into it, while the segmentation runs: its
+    // temporary must be gone too.
+    for (const auto& entry : fs::directory_iterator(dir))
+        EXPECT_EQ(entry.path().filename().string().find("b.h5"), std::string::npos) << entry.path();
 
     r = run_lseg("liver " + q(dir / "missing.mhd") + " -o " + q(dir / "c.h5"), dir);
     EXPECT_NE(r.exit_code, 0);

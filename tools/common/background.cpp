@@ -1,0 +1,27 @@
+#include "common/background.h"
+
+#include <utility>
+#if defined(__linux__)
+#include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
+namespace lobe::tools {
+
+std::future<void> run_when_idle(std::function<void()> work)
+{
+    return std::async(std::launch::async, [work = std::move(work)] {
+#if defined(__linux__)
+        // Linux gives each thread its own nice value. Best effort: if it cannot be lowered the
+        // work still runs, only without yielding to the caller.
+        sched_param none{};
+        if (sched_setscheduler(0, SCHED_IDLE, &none) != 0)
+            (void)setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), 19);
+#endif
+        work();
+    });
+}
+
+} // namespace lobe::tools
