@@ -266,7 +266,8 @@ class Evolver {
     std::vector<Visit> repair_; // candidates of the repair
     std::vector<Index> ring_;   // offsets of the 8 (2-D) or 26 (3-D) neighbours
     std::vector<BandVoxel> band_;
-    std::vector<BandVoxel> spare_band_; // the next band is built here, then swapped in
+    std::vector<BandVoxel> spare_band_; // the next band is built here, then sorted into band_
+    std::vector<std::size_t> row_end_;  // the band sort's row offsets
     Index pending_changes_ = 0;         // status changes of voxels that left the band since the last check
     Index pending_grew_ = 0;            // ... of them, those that became inside
     double growth_ = 0.0;               // net growth at the last check, per boundary voxel
@@ -806,8 +807,24 @@ bool Evolver::redistance(bool initial)
     }
     // In memory order, not breadth-first order: a step then reads φ's neighbourhoods nearly
     // sequentially (the evolution on a 512 x 512 x 80 volume took 13.3 s instead of 22.7 s).
-    std::sort(fresh.begin(), fresh.end(), [](const BandVoxel& x, const BandVoxel& y) { return x.idx < y.idx; });
-    band_.swap(fresh);
+    // A counting sort by grid row, then each row's few dozen voxels by index: the same order as
+    // sorting the whole band by index, at a fraction of a comparison sort's cost.
+    const std::size_t rows = static_cast<std::size_t>(g_.n[1]) * static_cast<std::size_t>(g_.n[2]);
+    const auto row_of = [this](const BandVoxel& bv) {
+        return static_cast<std::size_t>(bv.j) + static_cast<std::size_t>(g_.n[1]) * static_cast<std::size_t>(bv.k);
+    };
+    row_end_.assign(rows + 1, 0);
+    for (const BandVoxel& bv : fresh)
+        ++row_end_[row_of(bv) + 1];
+    for (std::size_t r = 0; r < rows; ++r)
+        row_end_[r + 1] += row_end_[r];
+    band_.resize(fresh.size());
+    for (const BandVoxel& bv : fresh)
+        band_[row_end_[row_of(bv)]++] = bv; // row_end_[r] ends as row r's end
+    for (std::size_t r = 0, begin = 0; r < rows; begin = row_end_[r], ++r)
+        std::sort(band_.begin() + static_cast<std::ptrdiff_t>(begin),
+                  band_.begin() + static_cast<std::ptrdiff_t>(row_end_[r]),
+                  [](const BandVoxel& x, const BandVoxel& y) { return x.idx < y.idx; });
     const Index sy = g_.stride[1], sz = g_.stride[2];
     auto out = [this](Index w) { return !(flags_[static_cast<std::size_t>(w)] & kInBand); };
     for (BandVoxel& bv : band_) {
