@@ -14,8 +14,9 @@ std::future<void> run_when_idle(std::function<void()> work)
 {
     return std::async(std::launch::async, [work = std::move(work)] {
 #if defined(__linux__)
-        // Linux gives each thread its own nice value. Best effort: if it cannot be lowered the
-        // work still runs, only without yielding to the caller.
+        // Linux gives each thread its own policy and nice value. SCHED_IDLE, not nice 19: at
+        // nice 19 the writer still slowed lseg liver's segmentation (docs/benchmarks.md). Best
+        // effort: if neither can be set the work still runs, only without yielding to the caller.
         sched_param none{};
         if (sched_setscheduler(0, SCHED_IDLE, &none) != 0)
             (void)setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), 19);
