@@ -162,6 +162,15 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     for (const auto& entry : fs::directory_iterator(dir))
         EXPECT_EQ(entry.path().filename().string().find("b.h5"), std::string::npos) << entry.path();
 
+    // The container is opened before the segmentation: an output directory that does not exist
+    // is refused at once, naming it.
+    r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "no-such-dir" / "i.h5"), dir);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_NE(r.err.find("no-such-dir"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("segmenting"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "no-such-dir"));
+
     r = run_lseg("liver " + q(dir / "missing.mhd") + " -o " + q(dir / "c.h5"), dir);
     EXPECT_NE(r.exit_code, 0);
     EXPECT_FALSE(fs::exists(dir / "c.h5"));
