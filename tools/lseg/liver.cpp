@@ -13,7 +13,6 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
-#include <future>
 #include <iomanip>
 #include <memory>
 #include <sstream>
@@ -130,10 +129,10 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     // time the segmentation's threads leave idle (its serial steps): on a 512 x 512 x 200 CT the
     // compressed write took 1.3 s after the segmentation (docs/benchmarks.md). The main thread
     // touches the writer again only after the image is written; a failed run still removes the
-    // temporary (the future waits first, then the writer's destructor).
+    // temporary (the work is waited for first, then the writer's destructor runs).
     io::Hdf5Writer h5(o.out);
     double image_write_seconds = 0.0;
-    std::future<void> image_written = tools::run_when_idle([&] {
+    tools::BackgroundWork image_written([&] {
         const auto t0 = std::chrono::steady_clock::now();
         h5.write_image("image", source);
         image_write_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -170,7 +169,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                      std::to_string(rejected) + " rejected by the shape memory)");
 
     timings.time("write", [&] {
-        image_written.get(); // rethrows a failed image write
+        image_written.wait(); // rethrows a failed image write
         io::Provenance prov = record.provenance();
         for (const auto& [name, seconds] : r.timings)
             prov.timings.emplace_back("liver." + name, seconds);
