@@ -13,10 +13,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <exception>
 #include <future>
 #include <limits>
+#include <mutex>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -389,9 +393,21 @@ core::LabelImage3D band_of(const core::ImageF& smoothed, const Tissue& t, double
     return out;
 }
 
+//! A slice's edge snap, to be run later: the next slice starts from the unsnapped mask, so the
+//! snap is off the propagation's sequential path and can run on whichever thread is free.
+struct SnapJob {
+    int slice = 0;
+    core::ImageGeometry grid;       // the whole slice's
+    Window window;                  // the snap's window on it
+    core::ImageF image;             // the window of the image the snake saw (excluded organs are fat)
+    core::LabelImage3D mask;        // the window of the mask to snap
+    core::LabelImage3D excluded;    // the window of the organs left out (empty: none)
+};
+
 struct SliceOutcome {
     core::LabelImage3D mask;    // on the slice's geometry; the next slice starts from it
     core::LabelImage3D snapped; // the mask moved on to the edges (empty: as mask); it is stacked
+    std::optional<SnapJob> snap; // the snap still to run (segment_slice leaves it to the caller)
     LiverSliceReport report;
     PieceLineage lineage; // the mask's separate pieces, for the next slice's growing-pieces rule
     bool stop = false;
@@ -842,15 +858,10 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     if (p.use_edge_snap && !out.report.not_liver && out.report.area_mm2 >= p.min_area_mm2) {
         // Within the snake's window, on the image the snake saw (excluded organs are fat there).
         const Window sw = window_around(out.mask, p.window_margin_mm);
-        const core::LabelImage3D mask_sw = crop(out.mask, sw);
-        if (count(mask_sw) < mask_sw.data.size()) { // a contour filling its window has no edge to meet
-            const SnakeResult s = snap_to_edges(crop(img, sw), mask_sw, p.snake, p.snap);
-            out.snapped = core::LabelImage3D(g, 0);
-            paste(s.mask, sw, out.snapped);
-            if (!excluded.data.empty())
-                for (std::size_t i = 0; i < out.snapped.data.size(); ++i)
-                    out.snapped.data[i] = out.snapped.data[i] && !excluded.data[i];
-        }
+        core::LabelImage3D mask_sw = crop(out.mask, sw);
+        if (count(mask_sw) < mask_sw.data.size()) // a contour filling its window has no edge to meet
+            out.snap = SnapJob{k, g, sw, crop(img, sw), std::move(mask_sw),
+                               excluded.data.empty() ? core::LabelImage3D() : crop(excluded, sw)};
     }
     out.report.seconds = seconds_since(t0);
     if (out.report.area_mm2 < p.min_area_mm2)
@@ -893,6 +904,88 @@ void report(const Context& c, const LiverSliceReport& r)
     c.progress(s.str());
 }
 
+//! The snapped mask of a job, on the whole slice.
+core::LabelImage3D run_snap(const LiverParams& p, const SnapJob& job)
+{
+    SnakeResult r = snap_to_edges(job.image, job.mask, p.snake, p.snap);
+    if (!job.excluded.data.empty())
+        for (std::size_t i = 0; i < r.mask.data.size(); ++i)
+            r.mask.data[i] = r.mask.data[i] && !job.excluded.data[i];
+    core::LabelImage3D out(job.grid, 0);
+    paste(r.mask, job.window, out);
+    return out;
+}
+
+//! The edge snaps of the propagation, run by whichever thread is free: the two directions push
+//! their slices' snaps and run them once their own propagation has ended, so the direction that
+//! ends first takes over the other's snaps instead of leaving its core idle. Each job writes
+//! only its own slice's result, so the results do not depend on which thread ran them.
+class SnapQueue {
+  public:
+    SnapQueue(const LiverParams& p, int slices, int producers) : p_(p), results_(std::size_t(slices)), producers_(producers) {}
+
+    void push(SnapJob job)
+    {
+        {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            jobs_.push_back(std::move(job));
+        }
+        ready_.notify_one();
+    }
+
+    //! A producer has pushed its last job.
+    void producer_done()
+    {
+        {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            --producers_;
+        }
+        ready_.notify_all();
+    }
+
+    //! Runs jobs until none is left and no producer will push more; a failed job's exception
+    //! is kept for rethrow() and the others still run.
+    void drain()
+    {
+        for (;;) {
+            SnapJob job;
+            {
+                std::unique_lock<std::mutex> lock(mutex_);
+                ready_.wait(lock, [&] { return !jobs_.empty() || producers_ == 0; });
+                if (jobs_.empty())
+                    return;
+                job = std::move(jobs_.front());
+                jobs_.pop_front();
+            }
+            try {
+                results_[std::size_t(job.slice)] = run_snap(p_, job);
+            } catch (...) {
+                const std::lock_guard<std::mutex> lock(mutex_);
+                if (!failure_)
+                    failure_ = std::current_exception();
+            }
+        }
+    }
+
+    void rethrow() const
+    {
+        if (failure_)
+            std::rethrow_exception(failure_);
+    }
+
+    //! The snapped mask of slice k (empty: not snapped).
+    core::LabelImage3D take(int k) { return std::move(results_[std::size_t(k)]); }
+
+  private:
+    const LiverParams& p_;
+    std::vector<core::LabelImage3D> results_;
+    std::mutex mutex_;
+    std::condition_variable ready_;
+    std::deque<SnapJob> jobs_;
+    int producers_;
+    std::exception_ptr failure_;
+};
+
 LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed_slice)
 {
     const core::ImageF& hu = c.hu;
@@ -904,6 +997,9 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
 
     SliceOutcome first = segment_slice(c, seed_slice, seed, nullptr, 0.0);
     report(c, first.report);
+    SnapQueue snaps(params, hu.size[2], 2);
+    if (first.snap)
+        snaps.push(std::move(*first.snap));
     const double first_area = first.report.area_mm2;
     // The slices after the seed's read the liver's grey levels from its whole contour: the seed
     // cells are few and homogeneous, and their sd is narrower than the liver's shading.
@@ -952,6 +1048,8 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
                                            heart_k.data.empty() ? nullptr : &heart_k, lineage);
             if (s.mask.data.empty())
                 break;
+            if (s.snap)
+                snaps.push(std::move(*s.snap));
             out.push_back(std::move(s));
             report(cx, out.back().report);
             prev = &out.back().mask;
@@ -972,24 +1070,35 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
             }
         }
     };
+    // A direction that has ended runs the edge snaps still queued, the other direction's too.
+    auto run_then_snap = [&](int step, std::vector<SliceOutcome>& out) {
+        try {
+            run(step, out);
+        } catch (...) {
+            snaps.producer_done();
+            throw;
+        }
+        snaps.producer_done();
+        snaps.drain();
+    };
     if (params.parallel_directions) {
         // One direction per core; each snake then runs its OpenMP loops on one thread, since
         // two teams of two spinning threads on two cores make both slower. (Handing the idle
         // core to the direction still running was tried: a 512^2 slice's snake gains nothing
-        // from a second thread, docs/benchmarks.md.)
+        // from a second thread, docs/benchmarks.md. The edge snaps are what it takes over.)
         const int outer = omp_get_max_threads();
         omp_set_num_threads(1);
         std::exception_ptr failed;
         std::thread t([&] {
             omp_set_num_threads(1);
             try {
-                run(+1, up);
+                run_then_snap(+1, up);
             } catch (...) {
                 failed = std::current_exception();
             }
         });
         try {
-            run(-1, down);
+            run_then_snap(-1, down);
         } catch (...) {
             t.join();
             omp_set_num_threads(outer);
@@ -1001,8 +1110,16 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
             std::rethrow_exception(failed);
     } else {
         run(+1, up);
+        snaps.producer_done();
         run(-1, down);
+        snaps.producer_done();
+        snaps.drain();
     }
+    snaps.rethrow();
+    first.snapped = snaps.take(first.report.slice);
+    for (auto* side : {&up, &down})
+        for (auto& s : *side)
+            s.snapped = snaps.take(s.report.slice);
 
     const std::size_t plane = static_cast<std::size_t>(hu.size[0]) * static_cast<std::size_t>(hu.size[1]);
     auto place = [&](const SliceOutcome& s) {
