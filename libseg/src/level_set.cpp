@@ -95,11 +95,23 @@ struct BandVoxel {
     Index idx;
     std::int32_t i, j, k;
     std::uint8_t nb; // kHas* and kEdge bits
-    // The static speeds at the voxel, copied here so that an update reads one contiguous record
-    // instead of five scattered images.
-    float curv;               // ε g
-    float press;              // P
-    std::array<float, 3> adv; // V
+};
+
+// A row's consecutive band voxels: band_[b, b + len) are the voxels v, v + 1, ..., v + len - 1.
+// Away from the grid border their update is a dense stencil the compiler vectorises.
+struct BandRun {
+    Index v;
+    std::int32_t b, len;
+    std::int32_t i;     // x index of the first voxel
+    bool interior_row;  // every in-plane (and in 3-D, z) neighbour row exists
+};
+
+// The static speeds of the band voxels, in band order (structure of arrays, so that a run's
+// speeds are contiguous like its φ), copied from the term images at each re-initialisation.
+struct BandSpeeds {
+    std::vector<float> curv;                 // ε g
+    std::vector<float> press;                // P
+    std::array<std::vector<float>, 3> adv;   // V
 };
 
 // ---------------------------------------------------------------------------- validation
@@ -225,7 +237,8 @@ class Evolver {
     void place(std::size_t begin, std::size_t end);
     bool violates(const Visit& q) const;
     void repair(std::size_t first);
-    template <bool k3D> void step_band(Index& inside, bool& near);
+    template <class Terms> void step_band(Index& inside, bool& near);
+    void index_band();
     std::uint8_t neighbour_bits(int i, int j, int k) const;
     bool any_sign(bool inside) const;
     void account(Index v)
@@ -266,6 +279,9 @@ class Evolver {
     std::vector<Visit> repair_; // candidates of the repair
     std::vector<Index> ring_;   // offsets of the 8 (2-D) or 26 (3-D) neighbours
     std::vector<BandVoxel> band_;
+    BandSpeeds speeds_;             // band_'s speeds, in its order
+    std::vector<BandRun> runs_;     // band_ cut into row runs
+    std::vector<Index> edge_voxels_; // band voxels with kEdge
     std::vector<BandVoxel> spare_band_; // the next band is built here, then sorted into band_
     std::vector<std::size_t> row_end_;  // the band sort's row offsets
     Index pending_changes_ = 0;         // status changes of voxels that left the band since the last check
@@ -302,6 +318,12 @@ double Evolver::time_step() const
     return worst > 0.0 ? params_.cfl / worst : params_.cfl * g_.hmin;
 }
 
+// Which terms of eq. 4.29 act, and whether the grid is 3-D: compile-time, so that the update of a
+// run of voxels has no branches and vectorises.
+template <bool k3D_, bool curv_, bool press_, bool adv_> struct Terms {
+    static constexpr bool k3D = k3D_, curv = curv_, press = press_, adv = adv_;
+};
+
 // The constants of one band update, as locals: members would be reloaded after every store
 // through the float output pointer, which may alias them.
 struct Kernel {
@@ -309,34 +331,38 @@ struct Kernel {
     Index sy, sz;
     Real ihx, ihy, ihz;
     Real kappa_max, dt;
-    bool curv, press, adv;
 };
 
-// One voxel of eq. 4.29: φ + Δt (ε g κ|∇φ| - P|∇φ|_Godunov - V·∇φ_upwind). The grid border
-// replicates the edge voxel (zero normal derivative), so a front may touch the border.
-template <bool k3D> inline float updated(const Kernel& k, const BandVoxel& bv)
+// Where a voxel's face neighbours are, as offsets: the grid border replicates the edge voxel
+// (offset 0, zero normal derivative), so a front may touch the border.
+struct Neighbours {
+    Index xm, xp, ym, yp, zm, zp;
+};
+
+// One voxel of eq. 4.29: φ + Δt (ε g κ|∇φ| - P|∇φ|_Godunov - V·∇φ_upwind), φ read at phi[0] and
+// the offsets n. Written with selects rather than branches so that a run of voxels vectorises;
+// each select picks the value the branch would have computed, so the result is the same.
+template <class Terms>
+inline float updated(const Kernel& k, const float* phi, const Neighbours& n, Real curv, Real pr, Real u, Real w, Real z)
 {
-    const float* phi = k.phi;
-    const Index v = bv.idx;
-    auto p = [phi, v](Index off) { return Real(phi[v + off]); };
-    const std::uint8_t nb = bv.nb;
-    const Index xm = nb & kHasXm ? -1 : 0, xp = nb & kHasXp ? 1 : 0;
-    const Index ym = nb & kHasYm ? -k.sy : 0, yp = nb & kHasYp ? k.sy : 0;
+    auto p = [phi](Index off) { return Real(phi[off]); };
+    const Index xm = n.xm, xp = n.xp, ym = n.ym, yp = n.yp;
     const Real ihx = k.ihx, ihy = k.ihy, ihz = k.ihz;
     const Real c = p(0);
     const Real dmx = (c - p(xm)) * ihx, dpx = (p(xp) - c) * ihx;
     const Real dmy = (c - p(ym)) * ihy, dpy = (p(yp) - c) * ihy;
     Index zm = 0, zp = 0;
     Real dmz = 0, dpz = 0;
+    constexpr bool k3D = Terms::k3D;
     if constexpr (k3D) {
-        zm = nb & kHasZm ? -k.sz : 0;
-        zp = nb & kHasZp ? k.sz : 0;
+        zm = n.zm;
+        zp = n.zp;
         dmz = (c - p(zm)) * ihz;
         dpz = (p(zp) - c) * ihz;
     }
 
     Real rate = Real(0);
-    if (k.curv) {
+    if constexpr (Terms::curv) {
         // κ = div(∇φ/|∇φ|) (eq. 4.30; in 3-D the sum of the principal curvatures), central differences.
         const Real fx = Real(0.5) * (dmx + dpx), fy = Real(0.5) * (dmy + dpy);
         const Real fxx = (dpx - dmx) * ihx, fyy = (dpy - dmy) * ihy;
@@ -353,74 +379,125 @@ template <bool k3D> inline float updated(const Kernel& k, const BandVoxel& bv)
             num = fxx * fy * fy - Real(2) * fx * fy * fxy + fyy * fx * fx;
             g2 = fx * fx + fy * fy;
         }
-        if (g2 > Real(kMinGrad2)) {
-            // κ|∇φ| = num / |∇φ|^2, with κ clamped to the grid's resolvable curvature so that a
-            // near-flat φ cannot blow up (the sqrt is only needed when the clamp acts).
-            Real kg = num / g2;
-            if (num * num > k.kappa_max * k.kappa_max * g2 * g2 * g2)
-                kg = std::copysign(k.kappa_max * std::sqrt(g2), num);
-            rate += Real(bv.curv) * kg;
-        }
+        // κ|∇φ| = num / |∇φ|^2, with κ clamped to the grid's resolvable curvature so that a
+        // near-flat φ cannot blow up. Below kMinGrad2 there is no term (the quotient computed
+        // there is discarded).
+        const Real quotient = num / g2, clamped = std::copysign(k.kappa_max * std::sqrt(g2), num);
+        const Real kg = num * num > k.kappa_max * k.kappa_max * g2 * g2 * g2 ? clamped : quotient;
+        rate = g2 > Real(kMinGrad2) ? rate + curv * kg : rate;
     }
-    if (k.press) {
+    if constexpr (Terms::press) {
         // Osher-Sethian / Godunov: P > 0 moves the front outwards (φ decreases), taking the
         // one-sided differences from the side the front comes from.
-        const Real pr = bv.press;
-        if (pr > Real(0)) {
-            Real s = sqr(std::max(dmx, Real(0))) + sqr(std::min(dpx, Real(0))) + sqr(std::max(dmy, Real(0))) +
-                     sqr(std::min(dpy, Real(0)));
-            if constexpr (k3D)
-                s += sqr(std::max(dmz, Real(0))) + sqr(std::min(dpz, Real(0)));
-            rate -= pr * std::sqrt(s);
-        } else if (pr < Real(0)) {
-            Real s = sqr(std::min(dmx, Real(0))) + sqr(std::max(dpx, Real(0))) + sqr(std::min(dmy, Real(0))) +
-                     sqr(std::max(dpy, Real(0)));
-            if constexpr (k3D)
-                s += sqr(std::min(dmz, Real(0))) + sqr(std::max(dpz, Real(0)));
-            rate -= pr * std::sqrt(s);
-        }
-    }
-    if (k.adv) {
-        // First-order upwind (eq. 4.32): the front moves along V (absent components are 0).
-        const Real u = bv.adv[0], w = bv.adv[1];
-        rate -= u * (u > Real(0) ? dmx : dpx) + w * (w > Real(0) ? dmy : dpy);
+        Real out = sqr(std::max(dmx, Real(0))) + sqr(std::min(dpx, Real(0))) + sqr(std::max(dmy, Real(0))) +
+                   sqr(std::min(dpy, Real(0)));
+        Real in = sqr(std::min(dmx, Real(0))) + sqr(std::max(dpx, Real(0))) + sqr(std::min(dmy, Real(0))) +
+                  sqr(std::max(dpy, Real(0)));
         if constexpr (k3D) {
-            const Real z = bv.adv[2];
-            rate -= z * (z > Real(0) ? dmz : dpz);
+            out += sqr(std::max(dmz, Real(0))) + sqr(std::min(dpz, Real(0)));
+            in += sqr(std::min(dmz, Real(0))) + sqr(std::max(dpz, Real(0)));
         }
+        rate = pr != Real(0) ? rate - pr * std::sqrt(pr > Real(0) ? out : in) : rate;
+    }
+    if constexpr (Terms::adv) {
+        // First-order upwind (eq. 4.32): the front moves along V (absent components are 0).
+        rate -= u * (u > Real(0) ? dmx : dpx) + w * (w > Real(0) ? dmy : dpy);
+        if constexpr (k3D)
+            rate -= z * (z > Real(0) ? dmz : dpz);
     }
     return static_cast<float>(c + k.dt * rate);
 }
 
-template <bool k3D> void Evolver::step_band(Index& inside, bool& near)
+// The voxels [0, n) of an interior run (every neighbour inside the grid): a dense loop.
+template <class Terms>
+Index update_interior(const Kernel& k, Index v, const float* __restrict curv, const float* __restrict press,
+                      const float* __restrict u, const float* __restrict w, const float* __restrict z, std::int32_t n,
+                      float* __restrict out)
 {
-    const auto nb = static_cast<Index>(band_.size());
-    const double trigger = g_.hmax; // the front within one voxel of a band-edge voxel
-    const Kernel kern{cur_,        g_.stride[1], g_.stride[2], rih_[0],           rih_[1], rih_[2],
-                      rkappa_max_, rdt_,         curv_,        press_ != nullptr, has_adv_};
-    const BandVoxel* band = band_.data();
-    float* out = nxt_;
+    const Neighbours nb{-1, 1, -k.sy, k.sy, -k.sz, k.sz};
+    const float* phi = k.phi + v;
+    out += v;
     Index in = 0;
-    bool nr = false;
-#pragma omp parallel for schedule(static) reduction(+ : in) reduction(|| : nr) if (nb >= kParallelBand)
-    for (Index b = 0; b < nb; ++b) {
-        const BandVoxel& bv = band[b];
-        const float f = updated<k3D>(kern, bv);
-        out[bv.idx] = f;
+    for (std::int32_t t = 0; t < n; ++t) {
+        const float f = updated<Terms>(k, phi + t, nb, curv[t], press[t], u[t], w[t], z[t]);
+        out[t] = f;
         in += f < 0.f;
-        nr = nr || ((bv.nb & kEdge) && std::abs(double(f)) <= trigger);
+    }
+    return in;
+}
+
+template <class Terms> void Evolver::step_band(Index& inside, bool& near)
+{
+    const Kernel kern{cur_, g_.stride[1], g_.stride[2], rih_[0], rih_[1], rih_[2], rkappa_max_, rdt_};
+    const BandVoxel* band = band_.data();
+    const BandRun* runs = runs_.data();
+    const float* curv = speeds_.curv.data();
+    const float* press = speeds_.press.data();
+    const float* u = speeds_.adv[0].data();
+    const float* w = speeds_.adv[1].data();
+    const float* z = speeds_.adv[2].data();
+    const int last_i = g_.n[0] - 1;
+    float* out = nxt_;
+    // A voxel on the grid border: its missing neighbours are itself.
+    auto border = [&](std::int32_t b) {
+        const BandVoxel& bv = band[b];
+        const std::uint8_t m = bv.nb;
+        const Neighbours nb{m & kHasXm ? -1 : 0,        m & kHasXp ? 1 : 0,         m & kHasYm ? -kern.sy : 0,
+                            m & kHasYp ? kern.sy : 0, m & kHasZm ? -kern.sz : 0, m & kHasZp ? kern.sz : 0};
+        const float f = updated<Terms>(kern, kern.phi + bv.idx, nb, curv[b], press[b], u[b], w[b], z[b]);
+        out[bv.idx] = f;
+        return Index(f < 0.f);
+    };
+    const auto nr = static_cast<Index>(runs_.size());
+    Index in = 0;
+#pragma omp parallel for schedule(static) reduction(+ : in) if (Index(band_.size()) >= kParallelBand)
+    for (Index r = 0; r < nr; ++r) {
+        const BandRun& run = runs[r];
+        std::int32_t lo = 0, hi = run.len;
+        if (run.interior_row) {
+            if (run.i == 0)
+                in += border(run.b + lo++);
+            if (lo < hi && run.i + hi - 1 == last_i)
+                in += border(run.b + --hi);
+            in += update_interior<Terms>(kern, run.v + lo, curv + run.b + lo, press + run.b + lo, u + run.b + lo,
+                                       w + run.b + lo, z + run.b + lo, hi - lo, out);
+        } else {
+            for (std::int32_t t = lo; t < hi; ++t)
+                in += border(run.b + t);
+        }
     }
     inside = in;
-    near = nr;
+    // The front within one voxel of a band-edge voxel.
+    const double trigger = g_.hmax;
+    near = std::any_of(edge_voxels_.begin(), edge_voxels_.end(),
+                       [out, trigger](Index v) { return std::abs(double(out[v])) <= trigger; });
 }
 
 bool Evolver::step(bool& near_edge)
 {
     Index inside = 0;
-    if (g_.active[2])
-        step_band<true>(inside, near_edge);
-    else
-        step_band<false>(inside, near_edge);
+    // Which terms act is fixed for the run: each combination gets its own loop without branches.
+    const auto with = [&](auto terms) { step_band<decltype(terms)>(inside, near_edge); };
+    const bool press = press_ != nullptr;
+    const int which = (g_.active[2] ? 8 : 0) | (curv_ ? 4 : 0) | (press ? 2 : 0) | (has_adv_ ? 1 : 0);
+    switch (which) {
+    case 0: with(Terms<false, false, false, false>{}); break;
+    case 1: with(Terms<false, false, false, true>{}); break;
+    case 2: with(Terms<false, false, true, false>{}); break;
+    case 3: with(Terms<false, false, true, true>{}); break;
+    case 4: with(Terms<false, true, false, false>{}); break;
+    case 5: with(Terms<false, true, false, true>{}); break;
+    case 6: with(Terms<false, true, true, false>{}); break;
+    case 7: with(Terms<false, true, true, true>{}); break;
+    case 8: with(Terms<true, false, false, false>{}); break;
+    case 9: with(Terms<true, false, false, true>{}); break;
+    case 10: with(Terms<true, false, true, false>{}); break;
+    case 11: with(Terms<true, false, true, true>{}); break;
+    case 12: with(Terms<true, true, false, false>{}); break;
+    case 13: with(Terms<true, true, false, true>{}); break;
+    case 14: with(Terms<true, true, true, false>{}); break;
+    default: with(Terms<true, true, true, true>{}); break;
+    }
     std::swap(cur_, nxt_);
     // Voxels outside the band never change sign, and the band surrounds every front, so an
     // all-outside (all-inside) band means no voxel is inside (outside) unless the front escaped
@@ -728,6 +805,37 @@ void Evolver::repair(std::size_t first)
     }
 }
 
+// The step's view of the sorted band: its speeds in band order, its row runs, its edge voxels.
+void Evolver::index_band()
+{
+    const std::size_t n = band_.size();
+    speeds_.curv.resize(n);
+    speeds_.press.resize(n);
+    for (auto& a : speeds_.adv)
+        a.resize(n);
+    runs_.clear();
+    edge_voxels_.clear();
+    const bool y_rows = g_.active[1];
+    for (std::size_t b = 0; b < n; ++b) {
+        const BandVoxel& bv = band_[b];
+        const auto v = static_cast<std::size_t>(bv.idx);
+        speeds_.curv[b] = static_cast<float>(eps_ * (stop_ ? double(stop_[v]) : 1.0));
+        speeds_.press[b] = press_ ? press_[v] : 0.f;
+        for (std::size_t ax = 0; ax < 3; ++ax)
+            speeds_.adv[ax][b] = adv_[ax] ? adv_[ax][v] : 0.f;
+        if (bv.nb & kEdge)
+            edge_voxels_.push_back(bv.idx);
+        if (b > 0 && !runs_.empty() && bv.idx == band_[b - 1].idx + 1 && bv.j == band_[b - 1].j &&
+            bv.k == band_[b - 1].k) {
+            ++runs_.back().len;
+            continue;
+        }
+        const bool interior = y_rows && bv.j > 0 && bv.j < g_.n[1] - 1 &&
+                              (!g_.active[2] || (bv.k > 0 && bv.k < g_.n[2] - 1));
+        runs_.push_back(BandRun{bv.idx, static_cast<std::int32_t>(b), 1, bv.i, interior});
+    }
+}
+
 // Sub-voxel redistancing restricted to the band: interface voxels get the local distance above
 // and define the front patches; the patches then spread outwards breadth-first, each voxel taking
 // the nearest patch among its already reached neighbours', stopping beyond the band width. Cost
@@ -786,12 +894,7 @@ bool Evolver::redistance(bool initial)
         }
         a[v] = b[v] = q.inside ? -std::max(d, tiny) : d;
         flags_[v] |= kInBand;
-        BandVoxel bv{q.idx, q.i, q.j, q.k, neighbour_bits(q.i, q.j, q.k), 0.f, 0.f, {0.f, 0.f, 0.f}};
-        bv.curv = static_cast<float>(eps_ * (stop_ ? double(stop_[v]) : 1.0));
-        bv.press = press_ ? press_[v] : 0.f;
-        for (std::size_t ax = 0; ax < 3; ++ax)
-            bv.adv[ax] = adv_[ax] ? adv_[ax][v] : 0.f;
-        fresh.push_back(bv);
+        fresh.push_back(BandVoxel{q.idx, q.i, q.j, q.k, neighbour_bits(q.i, q.j, q.k)});
     }
     if (initial) {
         std::copy(a, a + g_.count, b);
@@ -821,8 +924,8 @@ bool Evolver::redistance(bool initial)
     band_.resize(fresh.size());
     for (const BandVoxel& bv : fresh)
         band_[row_end_[row_of(bv)]++] = bv; // row_end_[r] ends as row r's end
-    for (std::size_t r = 0, begin = 0; r < rows; begin = row_end_[r], ++r)
-        std::sort(band_.begin() + static_cast<std::ptrdiff_t>(begin),
+    for (std::size_t r = 0, first = 0; r < rows; first = row_end_[r], ++r)
+        std::sort(band_.begin() + static_cast<std::ptrdiff_t>(first),
                   band_.begin() + static_cast<std::ptrdiff_t>(row_end_[r]),
                   [](const BandVoxel& x, const BandVoxel& y) { return x.idx < y.idx; });
     const Index sy = g_.stride[1], sz = g_.stride[2];
@@ -834,6 +937,7 @@ bool Evolver::redistance(bool initial)
             ((m & kHasYp) && out(i + sy)) || ((m & kHasZm) && out(i - sz)) || ((m & kHasZp) && out(i + sz)))
             bv.nb |= kEdge;
     }
+    index_band();
     return front;
 }
 
