@@ -318,6 +318,20 @@ double Evolver::time_step() const
     return worst > 0.0 ? params_.cfl / worst : params_.cfl * g_.hmin;
 }
 
+// The run update is compiled twice on x86-64 with GCC, for the baseline and for AVX2 (8 floats a
+// vector instead of 4), and picked at load time. AVX2 without FMA: no product is fused, so both
+// clones compute the same bits. `updated` must be inlined into the loop for it to vectorise.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define LOBE_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define LOBE_VECTOR_CLONES
+#endif
+#if defined(__GNUC__)
+#define LOBE_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define LOBE_ALWAYS_INLINE inline
+#endif
+
 // Which terms of eq. 4.29 act, and whether the grid is 3-D: compile-time, so that the update of a
 // run of voxels has no branches and vectorises.
 template <bool k3D_, bool curv_, bool press_, bool adv_> struct Terms {
@@ -343,7 +357,7 @@ struct Neighbours {
 // the offsets n. Written with selects rather than branches so that a run of voxels vectorises;
 // each select picks the value the branch would have computed, so the result is the same.
 template <class Terms>
-inline float updated(const Kernel& k, const float* phi, const Neighbours& n, Real curv, Real pr, Real u, Real w, Real z)
+LOBE_ALWAYS_INLINE float updated(const Kernel& k, const float* phi, const Neighbours& n, Real curv, Real pr, Real u, Real w, Real z)
 {
     auto p = [phi](Index off) { return Real(phi[off]); };
     const Index xm = n.xm, xp = n.xp, ym = n.ym, yp = n.yp;
@@ -410,7 +424,7 @@ inline float updated(const Kernel& k, const float* phi, const Neighbours& n, Rea
 
 // The voxels [0, n) of an interior run (every neighbour inside the grid): a dense loop.
 template <class Terms>
-Index update_interior(const Kernel& k, Index v, const float* __restrict curv, const float* __restrict press,
+LOBE_VECTOR_CLONES Index update_interior(const Kernel& k, Index v, const float* __restrict curv, const float* __restrict press,
                       const float* __restrict u, const float* __restrict w, const float* __restrict z, std::int32_t n,
                       float* __restrict out)
 {
