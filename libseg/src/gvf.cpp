@@ -1,5 +1,7 @@
 #include "lobe/seg/gvf.h"
 
+#include "detail/vectorise.h"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -155,7 +157,7 @@ struct Row {
 //! starts d2). The pointers are restrict parameters, not struct members, because only then
 //! does GCC 12 vectorise the loop (2-3x faster).
 template <int NC, bool FIRST>
-void row_interior(const float* __restrict w, const float* __restrict ym, const float* __restrict yp,
+LOBE_VECTOR_CLONES void row_interior(const float* __restrict w, const float* __restrict ym, const float* __restrict yp,
                   const float* __restrict zm, const float* __restrict zp, const float* __restrict a,
                   const float* __restrict r, const float* __restrict c, float* __restrict out, float* __restrict d2,
                   Index i0, Index i1)

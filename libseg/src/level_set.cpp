@@ -2,6 +2,7 @@
 // band and re-initialisation policy, time step and convergence test: docs/algorithms/level_set.md.
 #include "lobe/seg/level_set.h"
 
+#include "detail/vectorise.h"
 #include "lobe/seg/distance_transform.h"
 
 #include <algorithm>
@@ -317,20 +318,6 @@ double Evolver::time_step() const
     // No term moves anything: any Δt will do, the run converges at its first checks.
     return worst > 0.0 ? params_.cfl / worst : params_.cfl * g_.hmin;
 }
-
-// The run update is compiled twice on x86-64 with GCC, for the baseline and for AVX2 (8 floats a
-// vector instead of 4), and picked at load time. AVX2 without FMA: no product is fused, so both
-// clones compute the same bits. `updated` must be inlined into the loop for it to vectorise.
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-#define LOBE_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define LOBE_VECTOR_CLONES
-#endif
-#if defined(__GNUC__)
-#define LOBE_ALWAYS_INLINE inline __attribute__((always_inline))
-#else
-#define LOBE_ALWAYS_INLINE inline
-#endif
 
 // Which terms of eq. 4.29 act, and whether the grid is 3-D: compile-time, so that the update of a
 // run of voxels has no branches and vectorises.

@@ -60,15 +60,8 @@ struct Window {
 //! The window around the non-zero voxels of `m`, widened by margin_mm, clipped to the grid.
 Window window_around(const core::LabelImage3D& m, double margin_mm)
 {
-    int i0 = m.size[0], i1 = -1, j0 = m.size[1], j1 = -1;
-    for (int j = 0; j < m.size[1]; ++j)
-        for (int i = 0; i < m.size[0]; ++i)
-            if (m.at(i, j, 0)) {
-                i0 = std::min(i0, i);
-                i1 = std::max(i1, i);
-                j0 = std::min(j0, j);
-                j1 = std::max(j1, j);
-            }
+    const detail::Box b = detail::bounding_box(m);
+    const int i0 = b.lo[0], i1 = b.hi[0], j0 = b.lo[1], j1 = b.hi[1];
     const int mi = static_cast<int>(std::ceil(margin_mm / m.spacing[0]));
     const int mj = static_cast<int>(std::ceil(margin_mm / m.spacing[1]));
     Window w;
@@ -87,18 +80,20 @@ core::Image3D<T> crop(const core::Image3D<T>& img, const Window& w)
     g.origin = {o.x, o.y, o.z};
     g.size = {w.ni, w.nj, 1};
     core::Image3D<T> out(g);
-    for (int j = 0; j < w.nj; ++j)
-        for (int i = 0; i < w.ni; ++i)
-            out.at(i, j, 0) = img.at(w.i0 + i, w.j0 + j, 0);
+    for (int j = 0; j < w.nj && w.ni > 0; ++j) {
+        const T* row = &img.at(w.i0, w.j0 + j, 0);
+        std::copy(row, row + w.ni, &out.at(0, j, 0));
+    }
     return out;
 }
 
 template <class T>
 void paste(const core::Image3D<T>& part, const Window& w, core::Image3D<T>& into)
 {
-    for (int j = 0; j < w.nj; ++j)
-        for (int i = 0; i < w.ni; ++i)
-            into.at(w.i0 + i, w.j0 + j, 0) = part.at(i, j, 0);
+    for (int j = 0; j < w.nj && w.ni > 0; ++j) {
+        const T* row = &part.at(0, j, 0);
+        std::copy(row, row + w.ni, &into.at(w.i0, w.j0 + j, 0));
+    }
 }
 
 //! Voxels within r_mm of `m`: a Euclidean dilation in mm.

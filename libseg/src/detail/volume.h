@@ -28,14 +28,20 @@ template <class T>
 Box bounding_box(const core::Image3D<T>& mask)
 {
     Box b{{mask.size[0], mask.size[1], mask.size[2]}, {-1, -1, -1}};
+    const int nx = mask.size[0];
     for (int k = 0; k < mask.size[2]; ++k)
         for (int j = 0; j < mask.size[1]; ++j) {
+            // A row's first and last non-zero voxels are all it adds: scan in from both ends.
             const T* row = mask.data.data() + mask.index(0, j, k);
-            for (int i = 0; i < mask.size[0]; ++i)
-                if (row[i] != T{}) {
-                    b.lo = {std::min(b.lo[0], i), std::min(b.lo[1], j), std::min(b.lo[2], k)};
-                    b.hi = {std::max(b.hi[0], i), std::max(b.hi[1], j), std::max(b.hi[2], k)};
-                }
+            const T* first = std::find_if(row, row + nx, [](T v) { return v != T{}; });
+            if (first == row + nx)
+                continue;
+            int last = nx - 1;
+            while (row[last] == T{})
+                --last;
+            const auto i = static_cast<int>(first - row);
+            b.lo = {std::min(b.lo[0], i), std::min(b.lo[1], j), std::min(b.lo[2], k)};
+            b.hi = {std::max(b.hi[0], last), std::max(b.hi[1], j), std::max(b.hi[2], k)};
         }
     return b;
 }
