@@ -579,6 +579,14 @@ bool Evolver::interface_site(Index v, int i, int j, int k)
     const std::array<int, 3> ijk{i, j, k};
     const double f = p[v];
     const bool in = f < 0.0;
+    // Most band voxels have no neighbour of the other sign: settle that before any arithmetic.
+    bool other_sign = false;
+    for (std::size_t a = 0; a < 3 && !other_sign; ++a)
+        if (g_.active[a])
+            other_sign = (ijk[a] > 0 && (p[v - g_.stride[a]] < 0.f) != in) ||
+                         (ijk[a] < g_.n[a] - 1 && (p[v + g_.stride[a]] < 0.f) != in);
+    if (!other_sign)
+        return false;
     bool crossing = false;
     double big2 = 0.0;
     std::array<double, 3> grad{0, 0, 0};
