@@ -107,14 +107,6 @@ struct BandRun {
     bool interior_row;  // every in-plane (and in 3-D, z) neighbour row exists
 };
 
-// The static speeds of the band voxels, in band order (structure of arrays, so that a run's
-// speeds are contiguous like its φ), copied from the term images at each re-initialisation.
-struct BandSpeeds {
-    std::vector<float> curv;                 // ε g
-    std::vector<float> press;                // P
-    std::array<std::vector<float>, 3> adv;   // V
-};
-
 // ---------------------------------------------------------------------------- validation
 
 void check_image(const ImageF& img, const core::ImageGeometry& grid, const std::string& what, bool nonnegative)
@@ -166,6 +158,10 @@ class Evolver {
         eps_ = terms.curvature_weight;
         curv_ = eps_ > 0.0;
         stop_ = terms.stopping ? terms.stopping->data.data() : nullptr;
+        if (curv_ && !stop_) { // no stopping function: g = 1 everywhere
+            ones_.assign(g_.count, 1.f);
+            stop_ = ones_.data();
+        }
         press_ = terms.pressure ? terms.pressure->data.data() : nullptr;
         if (terms.advection)
             for (std::size_t a = 0; a < 3; ++a)
@@ -271,6 +267,7 @@ class Evolver {
     // Two full copies of φ: a step reads one and writes the band of the other, then they swap.
     // Voxels outside the band hold ±W in both.
     std::vector<float> other_;
+    std::vector<float> ones_; // g when the terms have no stopping function
     float* cur_ = nullptr;
     float* nxt_ = nullptr;
     std::vector<std::uint8_t> flags_;
@@ -280,7 +277,6 @@ class Evolver {
     std::vector<Visit> repair_; // candidates of the repair
     std::vector<Index> ring_;   // offsets of the 8 (2-D) or 26 (3-D) neighbours
     std::vector<BandVoxel> band_;
-    BandSpeeds speeds_;             // band_'s speeds, in its order
     std::vector<BandRun> runs_;     // band_ cut into row runs
     std::vector<Index> edge_voxels_; // band voxels with kEdge
     std::vector<BandVoxel> spare_band_; // the next band is built here, then sorted into band_
@@ -332,7 +328,21 @@ struct Kernel {
     Index sy, sz;
     Real ihx, ihy, ihz;
     Real kappa_max, dt;
+    double eps;
+    // The term images, read at the voxel like φ (contiguous along a run). The caller guarantees
+    // the ones its Terms read are present.
+    const float* stop;
+    const float* press;
+    const float* u;
+    const float* w;
+    const float* z;
 };
+
+// ε g at voxel v, as the update uses it.
+inline Real curvature_weight(double eps, const float* stop, Index v)
+{
+    return static_cast<float>(eps * double(stop[v]));
+}
 
 // Where a voxel's face neighbours are, as offsets: the grid border replicates the edge voxel
 // (offset 0, zero normal derivative), so a front may touch the border.
@@ -409,19 +419,20 @@ LOBE_ALWAYS_INLINE float updated(const Kernel& k, const float* phi, const Neighb
     return static_cast<float>(c + k.dt * rate);
 }
 
-// The voxels [0, n) of an interior run (every neighbour inside the grid): a dense loop.
+// The voxels [v, v + n) of an interior run (every neighbour inside the grid, every term image
+// the Terms read present): a dense loop.
 template <class Terms>
-LOBE_VECTOR_CLONES Index update_interior(const Kernel& k, Index v, const float* __restrict curv, const float* __restrict press,
-                      const float* __restrict u, const float* __restrict w, const float* __restrict z, std::int32_t n,
-                      float* __restrict out)
+LOBE_VECTOR_CLONES Index update_interior(const Kernel& k, Index v, std::int32_t n, float* __restrict out)
 {
     const Neighbours nb{-1, 1, -k.sy, k.sy, -k.sz, k.sz};
-    const float* phi = k.phi + v;
-    out += v;
     Index in = 0;
-    for (std::int32_t t = 0; t < n; ++t) {
-        const float f = updated<Terms>(k, phi + t, nb, curv[t], press[t], u[t], w[t], z[t]);
-        out[t] = f;
+    for (Index x = v; x < v + n; ++x) {
+        const Real curv = Terms::curv ? curvature_weight(k.eps, k.stop, x) : Real(0);
+        const Real pr = Terms::press ? Real(k.press[x]) : Real(0);
+        const Real u = Terms::adv ? Real(k.u[x]) : Real(0), w = Terms::adv ? Real(k.w[x]) : Real(0);
+        const Real z = Terms::adv && Terms::k3D ? Real(k.z[x]) : Real(0);
+        const float f = updated<Terms>(k, k.phi + x, nb, curv, pr, u, w, z);
+        out[x] = f;
         in += f < 0.f;
     }
     return in;
@@ -429,24 +440,24 @@ LOBE_VECTOR_CLONES Index update_interior(const Kernel& k, Index v, const float* 
 
 template <class Terms> void Evolver::step_band(Index& inside, bool& near)
 {
-    const Kernel kern{cur_, g_.stride[1], g_.stride[2], rih_[0], rih_[1], rih_[2], rkappa_max_, rdt_};
+    const Kernel kern{cur_,    g_.stride[1], g_.stride[2], rih_[0], rih_[1], rih_[2], rkappa_max_, rdt_,
+                      eps_,    stop_,        press_,       adv_[0], adv_[1], adv_[2]};
     const BandVoxel* band = band_.data();
     const BandRun* runs = runs_.data();
-    const float* curv = speeds_.curv.data();
-    const float* press = speeds_.press.data();
-    const float* u = speeds_.adv[0].data();
-    const float* w = speeds_.adv[1].data();
-    const float* z = speeds_.adv[2].data();
     const int last_i = g_.n[0] - 1;
     float* out = nxt_;
-    // A voxel on the grid border: its missing neighbours are itself.
+    // A voxel on the grid border: its missing neighbours are itself, and so are the components
+    // of V along inactive axes (0).
     auto border = [&](std::int32_t b) {
         const BandVoxel& bv = band[b];
+        const Index v = bv.idx;
         const std::uint8_t m = bv.nb;
         const Neighbours nb{m & kHasXm ? -1 : 0,        m & kHasXp ? 1 : 0,         m & kHasYm ? -kern.sy : 0,
                             m & kHasYp ? kern.sy : 0, m & kHasZm ? -kern.sz : 0, m & kHasZp ? kern.sz : 0};
-        const float f = updated<Terms>(kern, kern.phi + bv.idx, nb, curv[b], press[b], u[b], w[b], z[b]);
-        out[bv.idx] = f;
+        const auto component = [v](const float* c) { return c ? Real(c[v]) : Real(0); };
+        const float f = updated<Terms>(kern, kern.phi + v, nb, curv_ ? curvature_weight(eps_, stop_, v) : Real(0),
+                                       component(press_), component(adv_[0]), component(adv_[1]), component(adv_[2]));
+        out[v] = f;
         return Index(f < 0.f);
     };
     const auto nr = static_cast<Index>(runs_.size());
@@ -460,8 +471,7 @@ template <class Terms> void Evolver::step_band(Index& inside, bool& near)
                 in += border(run.b + lo++);
             if (lo < hi && run.i + hi - 1 == last_i)
                 in += border(run.b + --hi);
-            in += update_interior<Terms>(kern, run.v + lo, curv + run.b + lo, press + run.b + lo, u + run.b + lo,
-                                       w + run.b + lo, z + run.b + lo, hi - lo, out);
+            in += update_interior<Terms>(kern, run.v + lo, hi - lo, out);
         } else {
             for (std::int32_t t = lo; t < hi; ++t)
                 in += border(run.b + t);
@@ -814,24 +824,15 @@ void Evolver::repair(std::size_t first)
     }
 }
 
-// The step's view of the sorted band: its speeds in band order, its row runs, its edge voxels.
+// The step's view of the sorted band: its row runs and its edge voxels.
 void Evolver::index_band()
 {
     const std::size_t n = band_.size();
-    speeds_.curv.resize(n);
-    speeds_.press.resize(n);
-    for (auto& a : speeds_.adv)
-        a.resize(n);
     runs_.clear();
     edge_voxels_.clear();
     const bool y_rows = g_.active[1];
     for (std::size_t b = 0; b < n; ++b) {
         const BandVoxel& bv = band_[b];
-        const auto v = static_cast<std::size_t>(bv.idx);
-        speeds_.curv[b] = static_cast<float>(eps_ * (stop_ ? double(stop_[v]) : 1.0));
-        speeds_.press[b] = press_ ? press_[v] : 0.f;
-        for (std::size_t ax = 0; ax < 3; ++ax)
-            speeds_.adv[ax][b] = adv_[ax] ? adv_[ax][v] : 0.f;
         if (bv.nb & kEdge)
             edge_voxels_.push_back(bv.idx);
         if (b > 0 && !runs_.empty() && bv.idx == band_[b - 1].idx + 1 && bv.j == band_[b - 1].j &&
