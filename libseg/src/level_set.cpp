@@ -445,6 +445,7 @@ template <class Terms> void Evolver::step_band(Index& inside, bool& near)
     const BandVoxel* band = band_.data();
     const BandRun* runs = runs_.data();
     const int last_i = g_.n[0] - 1;
+    const bool vectorise = params_.vectorise;
     float* out = nxt_;
     // A voxel on the grid border: its missing neighbours are itself, and so are the components
     // of V along inactive axes (0).
@@ -466,7 +467,7 @@ template <class Terms> void Evolver::step_band(Index& inside, bool& near)
     for (Index r = 0; r < nr; ++r) {
         const BandRun& run = runs[r];
         std::int32_t lo = 0, hi = run.len;
-        if (run.interior_row) {
+        if (run.interior_row && vectorise) {
             if (run.i == 0)
                 in += border(run.b + lo++);
             if (lo < hi && run.i + hi - 1 == last_i)

@@ -52,6 +52,9 @@ struct LevelSetParams {
     int leak_checks = 0;
     double leak_slowdown = 0.25;
     double leak_rise = 1.5;
+    //! The band's row runs are updated by a vectorised loop; false updates every voxel with the
+    //! scalar code instead (the same arithmetic, hence the same bits: a check and a comparison).
+    bool vectorise = true;
 };
 
 //! What `evolve_level_set` returns.
