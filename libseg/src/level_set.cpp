@@ -303,7 +303,7 @@ double Evolver::time_step() const
     for (Index v = 0; v < n; ++v) {
         double r = 0.0;
         if (curv_)
-            r += curv_rate * (stop_ ? double(stop_[v]) : 1.0);
+            r += curv_rate * double(stop_[v]); // stop_ is g, or ones_ without a stopping function
         if (press_)
             r += press_rate * std::abs(double(press_[v]));
         for (std::size_t a = 0; a < 3; ++a)
@@ -456,8 +456,8 @@ template <class Terms> void Evolver::step_band(Index& inside, bool& near)
         const Neighbours nb{m & kHasXm ? -1 : 0,        m & kHasXp ? 1 : 0,         m & kHasYm ? -kern.sy : 0,
                             m & kHasYp ? kern.sy : 0, m & kHasZm ? -kern.sz : 0, m & kHasZp ? kern.sz : 0};
         const auto component = [v](const float* c) { return c ? Real(c[v]) : Real(0); };
-        const float f = updated<Terms>(kern, kern.phi + v, nb, curv_ ? curvature_weight(eps_, stop_, v) : Real(0),
-                                       component(press_), component(adv_[0]), component(adv_[1]), component(adv_[2]));
+        const float f = updated<Terms>(kern, kern.phi + v, nb, Terms::curv ? curvature_weight(kern.eps, kern.stop, v) : Real(0),
+                                       component(kern.press), component(kern.u), component(kern.w), component(kern.z));
         out[v] = f;
         return Index(f < 0.f);
     };
@@ -836,7 +836,7 @@ void Evolver::index_band()
         const BandVoxel& bv = band_[b];
         if (bv.nb & kEdge)
             edge_voxels_.push_back(bv.idx);
-        if (b > 0 && !runs_.empty() && bv.idx == band_[b - 1].idx + 1 && bv.j == band_[b - 1].j &&
+        if (!runs_.empty() && bv.idx == band_[b - 1].idx + 1 && bv.j == band_[b - 1].j &&
             bv.k == band_[b - 1].k) {
             ++runs_.back().len;
             continue;

@@ -72,28 +72,22 @@ Window window_around(const core::LabelImage3D& m, double margin_mm)
     return w;
 }
 
+//! The window as a box of the one-slice grid.
+detail::Box box_of(const Window& w)
+{
+    return {{w.i0, w.j0, 0}, {w.i0 + w.ni - 1, w.j0 + w.nj - 1, 0}};
+}
+
 template <class T>
 core::Image3D<T> crop(const core::Image3D<T>& img, const Window& w)
 {
-    core::ImageGeometry g = img.geometry();
-    const core::Vec3 o = g.index_to_physical(w.i0, w.j0, 0);
-    g.origin = {o.x, o.y, o.z};
-    g.size = {w.ni, w.nj, 1};
-    core::Image3D<T> out(g);
-    for (int j = 0; j < w.nj && w.ni > 0; ++j) {
-        const T* row = &img.at(w.i0, w.j0 + j, 0);
-        std::copy(row, row + w.ni, &out.at(0, j, 0));
-    }
-    return out;
+    return detail::crop(img, box_of(w));
 }
 
 template <class T>
 void paste(const core::Image3D<T>& part, const Window& w, core::Image3D<T>& into)
 {
-    for (int j = 0; j < w.nj && w.ni > 0; ++j) {
-        const T* row = &part.at(0, j, 0);
-        std::copy(row, row + w.ni, &into.at(w.i0, w.j0 + j, 0));
-    }
+    detail::paste(into, part, box_of(w));
 }
 
 //! Voxels within r_mm of `m`: a Euclidean dilation in mm.
