@@ -158,9 +158,9 @@ struct Row {
 //! does GCC 12 vectorise the loop (2-3x faster).
 template <int NC, bool FIRST>
 LOBE_VECTOR_CLONES void row_interior(const float* __restrict w, const float* __restrict ym, const float* __restrict yp,
-                  const float* __restrict zm, const float* __restrict zp, const float* __restrict a,
-                  const float* __restrict r, const float* __restrict c, float* __restrict out, float* __restrict d2,
-                  Index i0, Index i1)
+                                     const float* __restrict zm, const float* __restrict zp, const float* __restrict a,
+                                     const float* __restrict r, const float* __restrict c, float* __restrict out,
+                                     float* __restrict d2, Index i0, Index i1)
 {
     for (Index i = i0; i < i1; ++i) {
         const float x = w[i];

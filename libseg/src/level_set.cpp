@@ -103,8 +103,8 @@ struct BandVoxel {
 struct BandRun {
     Index v;
     std::int32_t b, len;
-    std::int32_t i;     // x index of the first voxel
-    bool interior_row;  // every in-plane (and in 3-D, z) neighbour row exists
+    std::int32_t i;    // x index of the first voxel
+    bool interior_row; // every in-plane (and in 3-D, z) neighbour row exists
 };
 
 // ---------------------------------------------------------------------------- validation
@@ -277,8 +277,8 @@ class Evolver {
     std::vector<Visit> repair_; // candidates of the repair
     std::vector<Index> ring_;   // offsets of the 8 (2-D) or 26 (3-D) neighbours
     std::vector<BandVoxel> band_;
-    std::vector<BandRun> runs_;     // band_ cut into row runs
-    std::vector<Index> edge_voxels_; // band voxels with kEdge
+    std::vector<BandRun> runs_;         // band_ cut into row runs
+    std::vector<Index> edge_voxels_;    // band voxels with kEdge
     std::vector<BandVoxel> spare_band_; // the next band is built here, then sorted into band_
     std::vector<std::size_t> row_end_;  // the band sort's row offsets
     Index pending_changes_ = 0;         // status changes of voxels that left the band since the last check
@@ -354,7 +354,8 @@ struct Neighbours {
 // the offsets n. Written with selects rather than branches so that a run of voxels vectorises;
 // each select picks the value the branch would have computed, so the result is the same.
 template <class Terms>
-LOBE_ALWAYS_INLINE float updated(const Kernel& k, const float* phi, const Neighbours& n, Real curv, Real pr, Real u, Real w, Real z)
+LOBE_ALWAYS_INLINE float updated(const Kernel& k, const float* phi, const Neighbours& n, Real curv, Real pr, Real u,
+                                 Real w, Real z)
 {
     auto p = [phi](Index off) { return Real(phi[off]); };
     const Index xm = n.xm, xp = n.xp, ym = n.ym, yp = n.yp;
@@ -440,8 +441,8 @@ LOBE_VECTOR_CLONES Index update_interior(const Kernel& k, Index v, std::int32_t 
 
 template <class Terms> void Evolver::step_band(Index& inside, bool& near)
 {
-    const Kernel kern{cur_,    g_.stride[1], g_.stride[2], rih_[0], rih_[1], rih_[2], rkappa_max_, rdt_,
-                      eps_,    stop_,        press_,       adv_[0], adv_[1], adv_[2]};
+    const Kernel kern{cur_, g_.stride[1], g_.stride[2], rih_[0], rih_[1], rih_[2], rkappa_max_,
+                      rdt_, eps_,         stop_,        press_,  adv_[0], adv_[1], adv_[2]};
     const BandVoxel* band = band_.data();
     const BandRun* runs = runs_.data();
     const int last_i = g_.n[0] - 1;
@@ -453,11 +454,12 @@ template <class Terms> void Evolver::step_band(Index& inside, bool& near)
         const BandVoxel& bv = band[b];
         const Index v = bv.idx;
         const std::uint8_t m = bv.nb;
-        const Neighbours nb{m & kHasXm ? -1 : 0,        m & kHasXp ? 1 : 0,         m & kHasYm ? -kern.sy : 0,
+        const Neighbours nb{m & kHasXm ? -1 : 0,      m & kHasXp ? 1 : 0,        m & kHasYm ? -kern.sy : 0,
                             m & kHasYp ? kern.sy : 0, m & kHasZm ? -kern.sz : 0, m & kHasZp ? kern.sz : 0};
         const auto component = [v](const float* c) { return c ? Real(c[v]) : Real(0); };
-        const float f = updated<Terms>(kern, kern.phi + v, nb, Terms::curv ? curvature_weight(kern.eps, kern.stop, v) : Real(0),
-                                       component(kern.press), component(kern.u), component(kern.w), component(kern.z));
+        const float f =
+            updated<Terms>(kern, kern.phi + v, nb, Terms::curv ? curvature_weight(kern.eps, kern.stop, v) : Real(0),
+                           component(kern.press), component(kern.u), component(kern.w), component(kern.z));
         out[v] = f;
         return Index(f < 0.f);
     };
@@ -493,22 +495,54 @@ bool Evolver::step(bool& near_edge)
     const bool press = press_ != nullptr;
     const int which = (g_.active[2] ? 8 : 0) | (curv_ ? 4 : 0) | (press ? 2 : 0) | (has_adv_ ? 1 : 0);
     switch (which) {
-    case 0: with(Terms<false, false, false, false>{}); break;
-    case 1: with(Terms<false, false, false, true>{}); break;
-    case 2: with(Terms<false, false, true, false>{}); break;
-    case 3: with(Terms<false, false, true, true>{}); break;
-    case 4: with(Terms<false, true, false, false>{}); break;
-    case 5: with(Terms<false, true, false, true>{}); break;
-    case 6: with(Terms<false, true, true, false>{}); break;
-    case 7: with(Terms<false, true, true, true>{}); break;
-    case 8: with(Terms<true, false, false, false>{}); break;
-    case 9: with(Terms<true, false, false, true>{}); break;
-    case 10: with(Terms<true, false, true, false>{}); break;
-    case 11: with(Terms<true, false, true, true>{}); break;
-    case 12: with(Terms<true, true, false, false>{}); break;
-    case 13: with(Terms<true, true, false, true>{}); break;
-    case 14: with(Terms<true, true, true, false>{}); break;
-    default: with(Terms<true, true, true, true>{}); break;
+    case 0:
+        with(Terms<false, false, false, false>{});
+        break;
+    case 1:
+        with(Terms<false, false, false, true>{});
+        break;
+    case 2:
+        with(Terms<false, false, true, false>{});
+        break;
+    case 3:
+        with(Terms<false, false, true, true>{});
+        break;
+    case 4:
+        with(Terms<false, true, false, false>{});
+        break;
+    case 5:
+        with(Terms<false, true, false, true>{});
+        break;
+    case 6:
+        with(Terms<false, true, true, false>{});
+        break;
+    case 7:
+        with(Terms<false, true, true, true>{});
+        break;
+    case 8:
+        with(Terms<true, false, false, false>{});
+        break;
+    case 9:
+        with(Terms<true, false, false, true>{});
+        break;
+    case 10:
+        with(Terms<true, false, true, false>{});
+        break;
+    case 11:
+        with(Terms<true, false, true, true>{});
+        break;
+    case 12:
+        with(Terms<true, true, false, false>{});
+        break;
+    case 13:
+        with(Terms<true, true, false, true>{});
+        break;
+    case 14:
+        with(Terms<true, true, true, false>{});
+        break;
+    default:
+        with(Terms<true, true, true, true>{});
+        break;
     }
     std::swap(cur_, nxt_);
     // Voxels outside the band never change sign, and the band surrounds every front, so an
@@ -836,13 +870,12 @@ void Evolver::index_band()
         const BandVoxel& bv = band_[b];
         if (bv.nb & kEdge)
             edge_voxels_.push_back(bv.idx);
-        if (!runs_.empty() && bv.idx == band_[b - 1].idx + 1 && bv.j == band_[b - 1].j &&
-            bv.k == band_[b - 1].k) {
+        if (!runs_.empty() && bv.idx == band_[b - 1].idx + 1 && bv.j == band_[b - 1].j && bv.k == band_[b - 1].k) {
             ++runs_.back().len;
             continue;
         }
-        const bool interior = y_rows && bv.j > 0 && bv.j < g_.n[1] - 1 &&
-                              (!g_.active[2] || (bv.k > 0 && bv.k < g_.n[2] - 1));
+        const bool interior =
+            y_rows && bv.j > 0 && bv.j < g_.n[1] - 1 && (!g_.active[2] || (bv.k > 0 && bv.k < g_.n[2] - 1));
         runs_.push_back(BandRun{bv.idx, static_cast<std::int32_t>(b), 1, bv.i, interior});
     }
 }
