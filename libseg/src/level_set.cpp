@@ -321,6 +321,19 @@ template <bool k3D_, bool curv_, bool press_, bool adv_> struct Terms {
     static constexpr bool k3D = k3D_, curv = curv_, press = press_, adv = adv_;
 };
 
+// Calls f(Terms<...>{}) with run-time flags (3-D, curvature, pressure, advection) made
+// compile-time, one flag at a time.
+template <bool... Fixed> struct TermFlags {
+    template <class F> static void call(F&& f) { f(Terms<Fixed...>{}); }
+    template <class F, class... Rest> static void call(F&& f, bool next, Rest... rest)
+    {
+        if (next)
+            TermFlags<Fixed..., true>::call(f, rest...);
+        else
+            TermFlags<Fixed..., false>::call(f, rest...);
+    }
+};
+
 // The constants of one band update, as locals: members would be reloaded after every store
 // through the float output pointer, which may alias them.
 struct Kernel {
@@ -492,58 +505,7 @@ bool Evolver::step(bool& near_edge)
     Index inside = 0;
     // Which terms act is fixed for the run: each combination gets its own loop without branches.
     const auto with = [&](auto terms) { step_band<decltype(terms)>(inside, near_edge); };
-    const bool press = press_ != nullptr;
-    const int which = (g_.active[2] ? 8 : 0) | (curv_ ? 4 : 0) | (press ? 2 : 0) | (has_adv_ ? 1 : 0);
-    switch (which) {
-    case 0:
-        with(Terms<false, false, false, false>{});
-        break;
-    case 1:
-        with(Terms<false, false, false, true>{});
-        break;
-    case 2:
-        with(Terms<false, false, true, false>{});
-        break;
-    case 3:
-        with(Terms<false, false, true, true>{});
-        break;
-    case 4:
-        with(Terms<false, true, false, false>{});
-        break;
-    case 5:
-        with(Terms<false, true, false, true>{});
-        break;
-    case 6:
-        with(Terms<false, true, true, false>{});
-        break;
-    case 7:
-        with(Terms<false, true, true, true>{});
-        break;
-    case 8:
-        with(Terms<true, false, false, false>{});
-        break;
-    case 9:
-        with(Terms<true, false, false, true>{});
-        break;
-    case 10:
-        with(Terms<true, false, true, false>{});
-        break;
-    case 11:
-        with(Terms<true, false, true, true>{});
-        break;
-    case 12:
-        with(Terms<true, true, false, false>{});
-        break;
-    case 13:
-        with(Terms<true, true, false, true>{});
-        break;
-    case 14:
-        with(Terms<true, true, true, false>{});
-        break;
-    default:
-        with(Terms<true, true, true, true>{});
-        break;
-    }
+    TermFlags<>::call(with, g_.active[2], curv_, press_ != nullptr, has_adv_);
     std::swap(cur_, nxt_);
     // Voxels outside the band never change sign, and the band surrounds every front, so an
     // all-outside (all-inside) band means no voxel is inside (outside) unless the front escaped
