@@ -594,7 +594,6 @@ bool Evolver::interface_site(Index v, int i, int j, int k)
                          (ijk[a] < g_.n[a] - 1 && (p[v + g_.stride[a]] < 0.f) != in);
     if (!other_sign)
         return false;
-    bool crossing = false;
     double big2 = 0.0;
     std::array<double, 3> grad{0, 0, 0};
     for (std::size_t a = 0; a < 3; ++a) {
@@ -606,14 +605,10 @@ bool Evolver::interface_site(Index v, int i, int j, int k)
         const bool cm = hm && (fm < 0.0) != in, cp = hp && (fp < 0.0) != in;
         grad[a] = (fp - fm) * ih_[a] / double((hm ? 1 : 0) + (hp ? 1 : 0));
         double da = std::abs(grad[a]);
-        if (cm || cp) {
-            crossing = true;
+        if (cm || cp)
             da = std::max(cm ? std::abs(f - fm) : 0.0, cp ? std::abs(fp - f) : 0.0) * ih_[a];
-        }
         big2 += da * da;
     }
-    if (!crossing)
-        return false;
     const double d = std::abs(f) / std::sqrt(big2); // big2 > 0: the signs differ across an axis
     const double gn = std::sqrt(sq(grad[0]) + sq(grad[1]) + sq(grad[2]));
     const auto id = static_cast<std::int32_t>(patches_.size());
