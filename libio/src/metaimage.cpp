@@ -418,9 +418,10 @@ std::vector<core::AnyImage> one(core::AnyImage&& image)
     return v;
 }
 
-template <class T>
-void swap_bytes(std::vector<T>& v)
+template <class V>
+void swap_bytes(V& v)
 {
+    using T = typename V::value_type;
     for (auto& x : v) {
         unsigned char b[sizeof(T)];
         std::memcpy(b, &x, sizeof(T));
@@ -447,7 +448,7 @@ std::vector<core::AnyImage> split_channels(const MetaImageHeader& h, const T* va
 
 // The decoded values as one image, or one image per channel.
 template <class T>
-std::vector<core::AnyImage> to_images(const MetaImageHeader& h, std::vector<T>&& values)
+std::vector<core::AnyImage> to_images(const MetaImageHeader& h, core::BigVector<T>&& values)
 {
     if (h.channels > 1)
         return split_channels(h, values.data());
@@ -460,7 +461,7 @@ std::vector<core::AnyImage> to_images(const MetaImageHeader& h, std::vector<T>&&
 template <class T>
 std::vector<core::AnyImage> decode_typed(const MetaImageHeader& h, std::string_view bytes)
 {
-    std::vector<T> values(h.geometry.voxel_count() * static_cast<std::size_t>(h.channels));
+    core::BigVector<T> values(h.geometry.voxel_count() * static_cast<std::size_t>(h.channels));
     std::memcpy(values.data(), bytes.data(), values.size() * sizeof(T));
     if (sizeof(T) > 1 && h.big_endian != host_is_big_endian())
         swap_bytes(values);
@@ -471,7 +472,7 @@ template <class T>
 std::vector<core::AnyImage> decode_ascii(const MetaImageHeader& h, std::string_view text, const std::string& where)
 {
     const std::size_t count = h.geometry.voxel_count() * static_cast<std::size_t>(h.channels);
-    std::vector<T> values;
+    core::BigVector<T> values;
     values.reserve(std::min<std::size_t>(count, text.size() / 2 + 1));
     const char* p = text.data();
     const char* e = p + text.size();

@@ -61,7 +61,7 @@ std::vector<float> gaussian_kernel(double sigma_vox)
 }
 
 //! First index of a non-finite value, or -1.
-Index first_non_finite(const std::vector<float>& d, std::size_t& count)
+Index first_non_finite(const core::BigVector<float>& d, std::size_t& count)
 {
     Index first = std::numeric_limits<Index>::max();
     std::size_t n_bad = 0;
@@ -79,7 +79,7 @@ Index first_non_finite(const std::vector<float>& d, std::size_t& count)
 //! The 99.9th percentile of the non-zero values of `v` (all >= 0, max `vmax` > 0), exactly:
 //! a histogram finds the bin holding that rank, then nth_element sorts only that bin, so the
 //! cost is O(n) with no copy of the image.
-float robust_max(const std::vector<float>& v, float vmax)
+float robust_max(const core::BigVector<float>& v, float vmax)
 {
     constexpr int kBins = 4096;
     const float to_bin = static_cast<float>(kBins) / vmax;
@@ -271,7 +271,7 @@ EdgeMapResult edge_map(const core::ImageF& image, const EdgeMapParams& params)
     r.intensity = gaussian_smooth(apply_window(image, params.window), params.sigma_mm);
     r.gradient_magnitude = magnitude(gradient(r.intensity));
 
-    const std::vector<float>& gm = r.gradient_magnitude.data;
+    const auto& gm = r.gradient_magnitude.data;
     float gmax = 0.f;
     const Index n = static_cast<Index>(gm.size());
 #pragma omp parallel for if (n > kParallelMin) schedule(static) reduction(max : gmax)

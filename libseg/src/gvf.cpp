@@ -26,13 +26,17 @@ using Index = std::ptrdiff_t;
 //! and on a busy machine a descheduled helper thread stalls the whole loop.
 constexpr Index kParallelMin = Index(1) << 15;
 
+//! One component of the flow or of a coefficient: image-sized, so it takes the images' allocator
+//! and is moved into the result without a copy.
+using Field = core::BigVector<float>;
+
 //! Per-voxel coefficients of the explicit step, time step folded in:
 //!     v <- v + a·Σ_nb (v_nb - v) - r·v + c,   a = Δt·h, r = Δt·p, c = Δt·p·∇f.
 //! Stored as arrays of floats so that each iteration only streams them (no exp per step).
 struct Coefficients {
-    std::vector<float> a, r;
-    std::array<std::vector<float>, 3> c;
-    std::array<std::vector<float>, 3> grad; // ∇f, the initial field
+    Field a, r;
+    std::array<Field, 3> c;
+    std::array<Field, 3> grad; // ∇f, the initial field
     double time_step = 0.0;
 };
 
@@ -199,8 +203,8 @@ template <int NC> void row_voxel(const Row& row, Index i, Index im, Index ip, bo
 //! the update is the same expression, operand for operand, as band_chunk's. `d2` holds nx
 //! floats. Returns max |Δv|^2 over the rows.
 template <int NC>
-float full_chunk(const core::ImageGeometry& g, const Coefficients& co, const std::array<std::vector<float>, 3>& cur,
-                 std::array<std::vector<float>, 3>& next, Index r0, Index r1, std::vector<float>& d2)
+float full_chunk(const core::ImageGeometry& g, const Coefficients& co, const std::array<Field, 3>& cur,
+                 std::array<Field, 3>& next, Index r0, Index r1, std::vector<float>& d2)
 {
     const Index nx = g.size[0], ny = g.size[1], nz = g.size[2];
     const Index sy = nx, sz = nx * ny;
@@ -246,7 +250,7 @@ float full_chunk(const core::ImageGeometry& g, const Coefficients& co, const std
 //! outside the band or the image. Returns max |Δv|^2.
 template <int NC>
 float band_chunk(const Coefficients& co, const std::array<std::vector<std::uint32_t>, 6>& nb,
-                 const std::array<std::vector<float>, 3>& cur, std::array<std::vector<float>, 3>& next, Index m0,
+                 const std::array<Field, 3>& cur, std::array<Field, 3>& next, Index m0,
                  Index m1)
 {
     float worst = 0.f;
@@ -396,7 +400,7 @@ GvfResult gradient_vector_flow(const core::ImageF& edge, const GvfParams& params
 
     GvfResult res;
     // v starts as ∇f (its z part is 0 in 2-D); ping-pong between two buffers.
-    std::array<std::array<std::vector<float>, 3>, 2> buf;
+    std::array<std::array<Field, 3>, 2> buf;
     buf[0] = std::move(co.grad);
     buf[1] = buf[0];
     const Index rows = Index(ny) * nz;
@@ -491,7 +495,7 @@ GvfResult gradient_vector_flow(const core::ImageF& edge, const core::LabelImage3
 
     Coefficients co = make_coefficients(edge, params, dim, count, [&](std::size_t m) { return ijk_of(voxels[m]); });
     GvfResult res;
-    std::array<std::array<std::vector<float>, 3>, 2> buf;
+    std::array<std::array<Field, 3>, 2> buf;
     buf[0] = std::move(co.grad);
     buf[1] = buf[0];
     constexpr Index kChunk = 4096;

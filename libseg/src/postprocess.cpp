@@ -193,7 +193,7 @@ std::size_t fill_concavities(Vol& m, int rx, int ry)
 }
 
 //! The level t with #(s > t) closest to `target`, from a 4096-bin histogram of s in (0, 1).
-double volume_preserving_level(const std::vector<float>& s, std::size_t target)
+double volume_preserving_level(const core::BigVector<float>& s, std::size_t target)
 {
     constexpr int kBins = 4096;
     std::vector<std::size_t> hist(kBins, 0);

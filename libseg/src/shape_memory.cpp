@@ -72,7 +72,7 @@ Box union_box(const SliceMoments& a, const SliceMoments& b, int pad, int nx, int
 
 //! Exact Euclidean distance [mm] to the mask inside `box` (the nearest mask pixel must lie in
 //! the box, which holds when the box contains the whole mask).
-std::vector<float> distance_in_box(const SliceView& s, const Box& box)
+core::BigVector<float> distance_in_box(const SliceView& s, const Box& box)
 {
     core::ImageGeometry g;
     g.size = {box.w(), box.h(), 1};
@@ -112,7 +112,7 @@ std::array<Transition, 2> measure_pair(const SliceView& a, const SliceView& b, c
                                        const SliceMoments& mb)
 {
     const Box box = union_box(ma, mb, 1, a.nx, a.ny);
-    const std::vector<float> da = distance_in_box(a, box), db = distance_in_box(b, box);
+    const core::BigVector<float> da = distance_in_box(a, box), db = distance_in_box(b, box);
     int na = 0, nb = 0;
     const cv::Mat la = components_in_box(a, box, na), lb = components_in_box(b, box, nb);
     std::vector<std::uint8_t> a_touches(static_cast<std::size_t>(na), 0), b_touches(static_cast<std::size_t>(nb), 0);
@@ -245,10 +245,10 @@ core::LabelImage3D offset_mask(const core::LabelImage3D& previous, double r_mm, 
     if (dilate) {
         const int pad = static_cast<int>(std::ceil(r_mm / std::min(s.sx, s.sy))) + 1;
         const Box box = union_box(m, m, pad, s.nx, s.ny);
-        const std::vector<float> d = distance_in_box(s, box);
+        const core::BigVector<float> d = distance_in_box(s, box);
         for (int j = 0; j < box.h(); ++j)
             for (int i = 0; i < box.w(); ++i)
-                if (d[static_cast<std::size_t>(i) + static_cast<std::size_t>(box.w()) * j] <= r_mm)
+                if (static_cast<double>(d[static_cast<std::size_t>(i) + static_cast<std::size_t>(box.w()) * j]) <= r_mm)
                     out.data[static_cast<std::size_t>(box.i0 + i) + static_cast<std::size_t>(s.nx) * (box.j0 + j)] = 1;
         return out;
     }
@@ -265,10 +265,10 @@ core::LabelImage3D offset_mask(const core::LabelImage3D& previous, double r_mm, 
             if (s.m[static_cast<std::size_t>(gi) + static_cast<std::size_t>(s.nx) * gj] && !border)
                 bg.data[static_cast<std::size_t>(i) + static_cast<std::size_t>(box.w()) * j] = 0;
         }
-    const std::vector<float> d = euclidean_distance(bg).data;
+    const core::BigVector<float> d = euclidean_distance(bg).data;
     for (int j = 0; j < box.h(); ++j)
         for (int i = 0; i < box.w(); ++i)
-            if (d[static_cast<std::size_t>(i) + static_cast<std::size_t>(box.w()) * j] > r_mm)
+            if (static_cast<double>(d[static_cast<std::size_t>(i) + static_cast<std::size_t>(box.w()) * j]) > r_mm)
                 out.data[static_cast<std::size_t>(box.i0 + i) + static_cast<std::size_t>(s.nx) * (box.j0 + j)] = 1;
     return out;
 }
@@ -513,10 +513,10 @@ ShapeMemory train_shape_memory(const std::vector<const core::ImageF*>& images,
     is.voxels = values.size();
     double sum = 0.0, sum2 = 0.0;
     for (float x : values)
-        sum += x;
+        sum += static_cast<double>(x);
     is.mean = sum / static_cast<double>(values.size());
     for (float x : values)
-        sum2 += (x - is.mean) * (x - is.mean);
+        sum2 += (static_cast<double>(x) - is.mean) * (static_cast<double>(x) - is.mean);
     is.sd = values.size() > 1 ? std::sqrt(sum2 / static_cast<double>(values.size() - 1)) : 0.0;
     for (std::size_t q = 0; q < kIntensityQuantileLevels.size(); ++q) {
         const auto r = static_cast<std::size_t>(

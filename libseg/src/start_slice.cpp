@@ -248,13 +248,10 @@ std::array<double, 4> plane_axes(const core::ImageGeometry& g)
 
 } // namespace
 
-double weighted_ncc(const std::vector<float>& f, const std::vector<float>& t, const std::vector<float>& w)
+double weighted_ncc(const float* f, const float* t, const float* w, std::size_t count)
 {
-    if (f.size() != t.size() || f.size() != w.size())
-        throw core::InvalidInputError("weighted_ncc: f, t and w must have the same size (" + std::to_string(f.size()) +
-                                      ", " + std::to_string(t.size()) + ", " + std::to_string(w.size()) + ")");
     double sw = 0, sf = 0, st = 0;
-    for (std::size_t i = 0; i < f.size(); ++i) {
+    for (std::size_t i = 0; i < count; ++i) {
         if (!(w[i] >= 0) || !std::isfinite(w[i]))
             throw core::InvalidInputError("weighted_ncc: weights must be finite and >= 0");
         const double wi = w[i];
@@ -266,7 +263,7 @@ double weighted_ncc(const std::vector<float>& f, const std::vector<float>& t, co
         return 0.0;
     const double mf = sf / sw, mt = st / sw;
     double n = 0, vf = 0, vt = 0;
-    for (std::size_t i = 0; i < f.size(); ++i) {
+    for (std::size_t i = 0; i < count; ++i) {
         const double df = double(f[i]) - mf, dt = double(t[i]) - mt, wi = w[i];
         n += wi * df * dt;
         vf += wi * df * df;

@@ -25,9 +25,9 @@ TEST(AnyImage, ConvertRoundsAndSaturates)
     f.data = {-1e6f, -0.5f, 2.5f, 3.6f, 1e6f};
     const auto s = convert_image<std::int16_t>(f);
     // nearbyint rounds half to even: -0.5 -> 0 (as -0), 2.5 -> 2; out-of-range values clamp.
-    EXPECT_EQ(s.data, (std::vector<std::int16_t>{-32768, 0, 2, 4, 32767}));
+    EXPECT_EQ(s.data, (BigVector<std::int16_t>{-32768, 0, 2, 4, 32767}));
     const auto u = convert_image<std::uint8_t>(s);
-    EXPECT_EQ(u.data, (std::vector<std::uint8_t>{0, 0, 2, 4, 255}));
+    EXPECT_EQ(u.data, (BigVector<std::uint8_t>{0, 0, 2, 4, 255}));
     Image3D<std::uint32_t> big(g, 4000000000u);
     EXPECT_EQ(convert_image<std::int32_t>(big).data[0], 2147483647);
     EXPECT_EQ(saturate_cast<std::uint8_t>(std::nan("")), 0);

@@ -900,7 +900,7 @@ TEST(DicomSeries, ReadsTwelveBitPixelsWithBitsAboveHighBitSet)
         s.pixels.push_back(static_cast<std::int16_t>(static_cast<std::uint16_t>((v & 0x0fff) | 0xa000)));
     write_dicom(dir / "twelve.dcm", s);
     const auto img = as<std::int16_t>(io::read_dicom_series(dir / "twelve.dcm").image);
-    EXPECT_EQ(img.data, (std::vector<std::int16_t>{-5 - 1024, 2047 - 1024, -2048 - 1024, -1024}));
+    EXPECT_EQ(img.data, (core::BigVector<std::int16_t>{-5 - 1024, 2047 - 1024, -2048 - 1024, -1024}));
 }
 
 TEST(DicomSeries, RejectsACodestreamOfAnotherSizeThanTheHeader)

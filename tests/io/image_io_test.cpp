@@ -97,7 +97,7 @@ TEST(Inrimage, ReadsByteOrderTypesAndSpacing)
     std::string le(reinterpret_cast<const char*>(v), sizeof v);
     write_inr(dir / "f.inr", "XDIM=2\nYDIM=1\nZDIM=1\nTYPE=float\nPIXSIZE=32 bits\nCPU=decm\n", le);
     const auto f = std::get<core::ImageF>(io::read_image(dir / "f.inr"));
-    EXPECT_EQ(f.data, (std::vector<float>{1.5f, -2.25f}));
+    EXPECT_EQ(f.data, (core::BigVector<float>{1.5f, -2.25f}));
 }
 
 TEST(Inrimage, RefusesBadFilesNamingThem)

@@ -144,7 +144,7 @@ TEST(MetaImage, ReadsBigEndianData)
                                "BinaryDataByteOrderMSB = True\nElementDataFile = LOCAL\n";
     write_text(dir / "be.mha", header + std::string("\x00\x01\x01\x00\xFF\xFE", 6));
     const auto img = std::get<core::Image3D<std::int16_t>>(io::read_metaimage(dir / "be.mha"));
-    EXPECT_EQ(img.data, (std::vector<std::int16_t>{1, 256, -2}));
+    EXPECT_EQ(img.data, (core::BigVector<std::int16_t>{1, 256, -2}));
 
     // ElementByteOrderMSB is the older spelling of the same field (BrainProtonDensity3Slices uses it).
     const std::string f32 = "NDims = 2\nDimSize = 1 1\nElementType = MET_FLOAT\n"
@@ -160,16 +160,16 @@ TEST(MetaImage, ReadsHeaderSizeAsciiAndAbsolutePaths)
     write_text(dir / "d.raw", std::string("JUNK\x05\x06", 6));
     write_text(dir / "skip.mhd", "NDims = 2\nDimSize = 2 1\nElementType = MET_UCHAR\nHeaderSize = 4\nElementDataFile = d.raw\n");
     EXPECT_EQ(std::get<core::Image3D<std::uint8_t>>(io::read_metaimage(dir / "skip.mhd")).data,
-              (std::vector<std::uint8_t>{5, 6}));
+              (core::BigVector<std::uint8_t>{5, 6}));
     write_text(dir / "tail.mhd", "NDims = 2\nDimSize = 2 1\nElementType = MET_UCHAR\nHeaderSize = -1\nElementDataFile = " +
                                      (dir / "d.raw").string() + "\n"); // absolute data path
     EXPECT_EQ(std::get<core::Image3D<std::uint8_t>>(io::read_metaimage(dir / "tail.mhd")).data,
-              (std::vector<std::uint8_t>{5, 6}));
+              (core::BigVector<std::uint8_t>{5, 6}));
     // BinaryData = False: whitespace-separated numbers.
     write_text(dir / "ascii.mha", "NDims = 2\nDimSize = 3 1\nElementType = MET_FLOAT\nBinaryData = False\n"
                                   "ElementDataFile = LOCAL\n0.5 -2\n7e1\n");
     EXPECT_EQ(std::get<core::Image3D<float>>(io::read_metaimage(dir / "ascii.mha")).data,
-              (std::vector<float>{0.5f, -2.0f, 70.0f}));
+              (core::BigVector<float>{0.5f, -2.0f, 70.0f}));
 }
 
 TEST(MetaImage, DecodesFromMemory)

@@ -50,10 +50,10 @@ core::ImageGeometry oblique_geometry(std::array<int, 3> size, bool left_handed =
 }
 
 
-template <class T>
-bool bit_equal(const std::vector<T>& a, const std::vector<T>& b)
+template <class V>
+bool bit_equal(const V& a, const V& b)
 {
-    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(typename V::value_type)) == 0;
 }
 
 void expect_geometry_near(const core::ImageGeometry& actual, const core::ImageGeometry& expected, double tol)

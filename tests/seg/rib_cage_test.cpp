@@ -289,7 +289,7 @@ TEST(RibCage, EnhanceAndMaskHelpers)
     EXPECT_FLOAT_EQ(e.data[3], 0.2f) << "off the ring: unchanged";
     EXPECT_EQ(seg::enhance_rib_edges(f, ring, 0.0).data, f.data);
     const auto m = seg::mask_outside_rib_cage(f, ring, -5.f);
-    EXPECT_EQ(m.data, (std::vector<float>{0.f, 0.2f, 0.6f, -5.f}));
+    EXPECT_EQ(m.data, (core::BigVector<float>{0.f, 0.2f, 0.6f, -5.f}));
     core::ImageGeometry other = g;
     other.size = {3, 1, 1};
     EXPECT_THROW(seg::enhance_rib_edges(f, core::LabelImage3D(other), 1.0), core::InvalidInputError);

@@ -8,6 +8,7 @@
 //! where D = direction is a 3x3 matrix stored row-major whose *columns* are the image axes.
 //! A 2-D image is a 3-D image with size[2] == 1.
 
+#include "lobe/core/big_buffer.h"
 #include "lobe/core/errors.h"
 #include "lobe/core/types.h"
 
@@ -140,7 +141,7 @@ inline bool same_grid(const ImageGeometry& a, const ImageGeometry& b, double tol
 template <class T>
 struct Image3D : ImageGeometry {
     using value_type = T;
-    std::vector<T> data;
+    BigVector<T> data; //!< voxel values; see big_buffer.h for the allocator
 
     Image3D() = default;
     //! An image on grid `g` filled with `value`.

@@ -58,8 +58,19 @@ StartSliceResult find_start_slice(const core::ImageF& hu_volume, const StartSlic
 //! The weighted normalised cross-correlation used above, exposed for testing and plots:
 //! R = Σ w (f - f̄_w)(t - t̄_w) / sqrt(Σ w (f - f̄_w)² · Σ w (t - t̄_w)²), with weighted means
 //! f̄_w = Σ w f / Σ w. Returns 0 when either weighted variance is ~0 (a flat window).
-//! `f`, `t`, `w` have the same size; w >= 0. \throw core::InvalidInputError otherwise.
-double weighted_ncc(const std::vector<float>& f, const std::vector<float>& t, const std::vector<float>& w);
+//! `f`, `t`, `w` hold `n` values each; w >= 0. \throw core::InvalidInputError otherwise.
+double weighted_ncc(const float* f, const float* t, const float* w, std::size_t n);
+
+//! The same for three contiguous containers of floats (std::vector, an image's data) of one
+//! size. \throw core::InvalidInputError if the sizes differ or a weight is negative.
+template <class F, class T, class W>
+double weighted_ncc(const F& f, const T& t, const W& w)
+{
+    if (f.size() != t.size() || f.size() != w.size())
+        throw core::InvalidInputError("weighted_ncc: f, t and w must have the same size (" + std::to_string(f.size()) +
+                                      ", " + std::to_string(t.size()) + ", " + std::to_string(w.size()) + ")");
+    return weighted_ncc(f.data(), t.data(), w.data(), f.size());
+}
 
 //! The synthetic heart/lung template as the matcher sees it, rasterised on a square grid of
 //! `pixel_mm` pixels centred on the heart, rotated by `rotation_deg` (same sign as
