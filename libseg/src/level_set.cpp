@@ -265,13 +265,13 @@ class Evolver {
     Real rkappa_max_ = 0, rdt_ = 0;
 
     // Two full copies of φ: a step reads one and writes the band of the other, then they swap.
-    // Voxels outside the band hold ±W in both.
-    std::vector<float> other_;
-    std::vector<float> ones_; // g when the terms have no stopping function
+    // Voxels outside the band hold ±W in both. Grid-sized arrays are BigVectors (huge pages in 3-D).
+    core::BigVector<float> other_;
+    core::BigVector<float> ones_; // g when the terms have no stopping function
     float* cur_ = nullptr;
     float* nxt_ = nullptr;
-    std::vector<std::uint8_t> flags_;
-    std::vector<std::int32_t> slot_; // during redistancing: voxel -> its patch; -1 not reached, -2 queued
+    core::BigVector<std::uint8_t> flags_;
+    core::BigVector<std::int32_t> slot_; // during redistancing: voxel -> its patch; -1 not reached, -2 queued
     std::vector<Patch> patches_;
     std::vector<Visit> visits_; // in breadth-first order, the interface voxels first
     std::vector<Visit> repair_; // candidates of the repair
