@@ -16,7 +16,6 @@
 #include <cstdint>
 #include <cstdlib>
 #include <limits>
-#include <memory>
 #include <new>
 #include <vector>
 
@@ -76,10 +75,6 @@ struct BigBufferAllocator {
         return false;
     }
 };
-
-} // namespace lobe::core
-
-namespace lobe::core {
 
 //! A vector of voxel values with the big-buffer allocator: the type of Image3D::data.
 template <class T>
