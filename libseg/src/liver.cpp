@@ -1040,6 +1040,10 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
             if (s.snap)
                 snaps.push(std::move(*s.snap));
             out.push_back(std::move(s));
+            // A lineage is read by the next slice only: free the one before (two slice-sized
+            // float images per slice, 290 MB over a 512 x 512 x 200 volume if all were kept).
+            if (out.size() >= 2)
+                out[out.size() - 2].lineage = PieceLineage{};
             report(cx, out.back().report);
             prev = &out.back().mask;
             lineage = &out.back().lineage;
@@ -1123,6 +1127,9 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     place(first);
     for (const auto& s : up)
         place(s);
+    // Stacked: the slices' own masks (two byte images each) are not needed beside the steps below.
+    std::vector<SliceOutcome>().swap(up);
+    std::vector<SliceOutcome>().swap(down);
     if (params.fill_vessel_inlets && params.post.convention == LiverConvention::Sliver07) {
         // Contrast-filled vessels open to the liver's surface in a slice (hepatic veins running
         // to the IVC, portal branches at the hilum) are inlets the contour leaves out and the
@@ -1440,6 +1447,10 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     const core::ImageF seed_img = core::axial_slice(work, seed.slice);
     c.tissue = tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed.mask, seed_img.geometry()));
     LiverResult r = propagate(c, seed.mask, seed.slice);
+    // The ring and the inside served the propagation; only the wall is read from here on (two
+    // byte volumes that would sit beside the 3-D pass, which sets the peak memory).
+    ribs.inside = core::LabelImage3D();
+    ribs.ring = core::LabelImage3D();
     for (const auto& tm : r.timings)
         timings.push_back(tm);
     r.stacked = r.mask;

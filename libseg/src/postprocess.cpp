@@ -226,7 +226,6 @@ PostprocessResult postprocess_liver_full(const core::LabelImage3D& stacked, cons
         throw core::InvalidInputError("postprocess_liver: smoothing_mm and concavity_closing_mm must not be NaN");
 
     PostprocessResult r;
-    r.mask = core::LabelImage3D(stacked.geometry(), 0);
     // Bounding box of the mask.
     std::array<int, 3> lo{stacked.size[0], stacked.size[1], stacked.size[2]}, hi{-1, -1, -1};
     for (int k = 0; k < stacked.size[2]; ++k)
@@ -237,8 +236,10 @@ PostprocessResult postprocess_liver_full(const core::LabelImage3D& stacked, cons
                     lo = {std::min(lo[0], i), std::min(lo[1], j), std::min(lo[2], k)};
                     hi = {std::max(hi[0], i), std::max(hi[1], j), std::max(hi[2], k)};
                 }
-    if (r.voxels_in == 0)
+    if (r.voxels_in == 0) {
+        r.mask = core::LabelImage3D(stacked.geometry(), 0);
         return r;
+    }
 
     // Work on the box plus what the smoothing kernel (4 sigma) and the closing reach.
     const bool sliver = params.convention == LiverConvention::Sliver07;
@@ -290,6 +291,12 @@ PostprocessResult postprocess_liver_full(const core::LabelImage3D& stacked, cons
     }
     if (!sliver)
         r.filled_holes = 0;
+    // Only the box's size is read from here on, and the holes only to restore them: free what
+    // the smoothing's float volumes would otherwise sit beside (the 3-D pass sets lseg liver's
+    // peak memory).
+    std::vector<std::uint8_t>().swap(m.v);
+    if (sliver)
+        std::vector<std::uint8_t>().swap(holes.v);
 
     // Smooth the filled mask and cut it at the volume-preserving level.
     Vol out = filled;
@@ -319,6 +326,7 @@ PostprocessResult postprocess_liver_full(const core::LabelImage3D& stacked, cons
             if (holes.v[p])
                 out.v[p] = 0;
 
+    r.mask = core::LabelImage3D(stacked.geometry(), 0);
     for (int k = 0; k < m.nz; ++k)
         for (int j = 0; j < m.ny; ++j)
             for (int i = 0; i < m.nx; ++i)

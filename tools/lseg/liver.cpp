@@ -118,7 +118,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.modality = o.modality == "ct" ? seg::Modality::Ct : o.modality == "mr" ? seg::Modality::Mr : seg::Modality::Auto;
 
     // The container keeps the image in its own type (a CT stays int16, half the bytes of float).
-    const core::AnyImage source = timings.time("read image", [&] { return read_any(o.image, o.image_name); });
+    core::AnyImage source = timings.time("read image", [&] { return read_any(o.image, o.image_name); });
     const core::ImageF volume = core::convert_image<float>(source);
     std::unique_ptr<seg::ShapeMemory> memory;
     if (!o.shape.empty())
@@ -135,6 +135,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     tools::BackgroundWork image_written([&] {
         const auto t0 = std::chrono::steady_clock::now();
         h5.write_image("image", source);
+        source = core::AnyImage(); // written: its 100 MB (512 x 512 x 200 int16) not beside the segmentation's peak
         image_write_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     });
 
