@@ -1253,8 +1253,10 @@ SnakeParams default_liver_snake()
     return p;
 }
 
-LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
-                            const LiverParams& params, const LiverProgress& progress)
+namespace {
+
+LiverResult propagate_head_up(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
+                              const LiverParams& params, const LiverProgress& progress)
 {
     check_image(hu, "propagate_liver");
     if (seed_slice < 0 || seed_slice >= hu.size[2])
@@ -1274,8 +1276,8 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
     return r;
 }
 
-LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, const ShapeMemory* memory,
-                          const LiverProgress& progress)
+LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, const ShapeMemory* memory,
+                            const LiverProgress& progress)
 {
     check_image(hu, "segment_liver");
     if (hu.size[2] < params.min_slices)
@@ -1497,6 +1499,71 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
     timings.emplace_back("total", seconds_since(t0));
     r.timings = timings;
     return r;
+}
+
+//! The pipeline reads +k as towards the head (the start slice above the liver, the upward
+//! propagation's heart model and dome contact, the top slice). A volume whose slices run from
+//! head to feet (the third axis's z component negative) is segmented in reverse slice order and
+//! everything the result says of slices mapped back: the same liver as for the same anatomy
+//! stored head up (liver.md, "Orientation").
+LiverResult head_up(const core::ImageF& hu, const char* who, const LiverProgress& progress,
+                    const std::function<LiverResult(const core::ImageF&)>& run)
+{
+    if (!(hu.axis(2).z < 0.0))
+        return run(hu); // run checks the image
+    check_image(hu, who); // before reversing it
+    if (progress)
+        progress("the slices run from head to feet: segmented in reverse order (slice numbers in these messages "
+                 "count from the last slice)");
+    const int nz = hu.size[2];
+    LiverResult r = run(core::reverse_slices(hu));
+    const auto back = [nz](int k) { return k < 0 ? k : nz - 1 - k; };
+    if (!r.mask.data.empty())
+        r.mask = core::reverse_slices(r.mask);
+    if (!r.stacked.data.empty())
+        r.stacked = core::reverse_slices(r.stacked);
+    if (r.start.slice >= 0)
+        r.start.heart_centre.z = double(nz - 1) - r.start.heart_centre.z;
+    r.start.slice = back(r.start.slice);
+    std::reverse(r.start.slice_scores.begin(), r.start.slice_scores.end());
+    r.seed.slice = back(r.seed.slice);
+    if (!r.seed.mask.data.empty()) {
+        // The seed keeps its pixels; its one-slice grid is that slice of the input's.
+        const core::Vec3 o = hu.index_to_physical(0, 0, r.seed.slice);
+        core::ImageGeometry g = hu.geometry();
+        g.origin = {o.x, o.y, o.z};
+        g.size[2] = 1;
+        static_cast<core::ImageGeometry&>(r.seed.mask) = g;
+    }
+    r.seed_slice = back(r.seed_slice);
+    const int first = r.first_slice;
+    r.first_slice = back(r.last_slice);
+    r.last_slice = back(first);
+    for (auto& s : r.slices)
+        s.slice = back(s.slice);
+    std::reverse(r.slices.begin(), r.slices.end());
+    return r;
+}
+
+} // namespace
+
+LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
+                            const LiverParams& params, const LiverProgress& progress)
+{
+    return head_up(hu, "propagate_liver", progress, [&](const core::ImageF& v) {
+        if (&v == &hu) // head up: the volume itself, the seed as given
+            return propagate_head_up(hu, seed, seed_slice, params, progress);
+        if (seed_slice < 0 || seed_slice >= hu.size[2]) // before it is mapped, so that the message names it
+            throw core::InvalidInputError("propagate_liver: seed slice " + std::to_string(seed_slice) +
+                                          " is outside the image (0.." + std::to_string(hu.size[2] - 1) + ")");
+        return propagate_head_up(v, seed, hu.size[2] - 1 - seed_slice, params, progress);
+    });
+}
+
+LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, const ShapeMemory* memory,
+                          const LiverProgress& progress)
+{
+    return head_up(hu, "segment_liver", progress, [&](const core::ImageF& v) { return segment_head_up(v, params, memory, progress); });
 }
 
 } // namespace lobe::seg

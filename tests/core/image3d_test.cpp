@@ -123,3 +123,32 @@ TEST(Image3D, AxialSliceKeepsItsPlaceInSpace)
     EXPECT_THROW(axial_slice(img, 4), InvalidInputError);
     EXPECT_THROW(axial_slice(img, -1), InvalidInputError);
 }
+
+// Every voxel keeps its value and its physical position; twice is the identity (the origin to
+// rounding: two sums of (n - 1) * spacing along the axis and back).
+TEST(Image3D, ReverseSlicesKeepsEveryVoxelInPlace)
+{
+    Image3D<int> img(rotated(), 0);
+    for (std::size_t i = 0; i < img.data.size(); ++i)
+        img.data[i] = static_cast<int>(i);
+    const Image3D<int> rev = reverse_slices(img);
+    ASSERT_EQ(rev.size, img.size);
+    EXPECT_EQ(rev.spacing, img.spacing);
+    EXPECT_NEAR(rev.axis(2).z, -1.0, 1e-12); // the third axis turns round
+    EXPECT_NEAR(rev.axis(0).x, img.axis(0).x, 1e-12);
+    for (int k = 0; k < img.size[2]; ++k)
+        for (int j = 0; j < img.size[1]; j += 7)
+            for (int i = 0; i < img.size[0]; i += 3) {
+                const int kr = img.size[2] - 1 - k;
+                EXPECT_EQ(rev.at(i, j, kr), img.at(i, j, k));
+                const Vec3 a = img.index_to_physical(i, j, k), b = rev.index_to_physical(i, j, kr);
+                EXPECT_NEAR(a.x, b.x, 1e-9);
+                EXPECT_NEAR(a.y, b.y, 1e-9);
+                EXPECT_NEAR(a.z, b.z, 1e-9);
+            }
+    const Image3D<int> back = reverse_slices(rev);
+    EXPECT_EQ(back.data, img.data);
+    EXPECT_EQ(back.direction, img.direction);
+    for (std::size_t a = 0; a < 3; ++a)
+        EXPECT_NEAR(back.origin[a], img.origin[a], 1e-9);
+}

@@ -173,6 +173,30 @@ Image3D<T> axial_slice(const Image3D<T>& image, int k)
     return out;
 }
 
+//! `image` with its slices in reverse order, every voxel at the same physical position: the
+//! origin moves to the last slice and the third axis turns round. Reversing twice gives the
+//! image back (its origin to rounding). For code that reads +k as one anatomical direction
+//! (the liver pipeline reads it as towards the head).
+template <class T>
+Image3D<T> reverse_slices(const Image3D<T>& image)
+{
+    ImageGeometry g = image.geometry();
+    if (g.size[2] > 0) {
+        const Vec3 o = g.index_to_physical(0, 0, g.size[2] - 1);
+        g.origin = {o.x, o.y, o.z};
+    }
+    for (int r = 0; r < 3; ++r)
+        g.direction[static_cast<std::size_t>(3 * r + 2)] = -g.direction[static_cast<std::size_t>(3 * r + 2)];
+    Image3D<T> out(g);
+    const std::size_t n = static_cast<std::size_t>(g.size[0]) * static_cast<std::size_t>(g.size[1]);
+    for (int k = 0; k < g.size[2]; ++k) {
+        const auto from = image.data.begin() + static_cast<std::ptrdiff_t>(n * static_cast<std::size_t>(g.size[2] - 1 - k));
+        std::copy(from, from + static_cast<std::ptrdiff_t>(n),
+                  out.data.begin() + static_cast<std::ptrdiff_t>(n * static_cast<std::size_t>(k)));
+    }
+    return out;
+}
+
 using ImageF = Image3D<float>;
 using ImageI16 = Image3D<std::int16_t>;
 using LabelImage3D = Image3D<std::uint8_t>;
