@@ -1563,7 +1563,8 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
 LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, const ShapeMemory* memory,
                           const LiverProgress& progress)
 {
-    return head_up(hu, "segment_liver", progress, [&](const core::ImageF& v) { return segment_head_up(v, params, memory, progress); });
+    return head_up(hu, "segment_liver", progress,
+                   [&](const core::ImageF& v) { return segment_head_up(v, params, memory, progress); });
 }
 
 } // namespace lobe::seg
