@@ -1507,16 +1507,16 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
 //! everything the result says of slices mapped back: the same liver as for the same anatomy
 //! stored head up (liver.md, "Orientation").
 LiverResult head_up(const core::ImageF& hu, const char* who, const LiverProgress& progress,
-                    const std::function<LiverResult(const core::ImageF&)>& run)
+                    const std::function<LiverResult(const core::ImageF&, bool reversed)>& run)
 {
     if (!(hu.axis(2).z < 0.0))
-        return run(hu); // run checks the image
+        return run(hu, false); // run checks the image
     check_image(hu, who); // before reversing it
     if (progress)
         progress("the slices run from head to feet: segmented in reverse order (slice numbers in these messages "
                  "count from the last slice)");
     const int nz = hu.size[2];
-    LiverResult r = run(core::reverse_slices(hu));
+    LiverResult r = run(core::reverse_slices(hu), true);
     const auto back = [nz](int k) { return k < 0 ? k : nz - 1 - k; };
     if (!r.mask.data.empty())
         r.mask = core::reverse_slices(r.mask);
@@ -1550,9 +1550,9 @@ LiverResult head_up(const core::ImageF& hu, const char* who, const LiverProgress
 LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
                             const LiverParams& params, const LiverProgress& progress)
 {
-    return head_up(hu, "propagate_liver", progress, [&](const core::ImageF& v) {
-        if (&v == &hu) // head up: the volume itself, the seed as given
-            return propagate_head_up(hu, seed, seed_slice, params, progress);
+    return head_up(hu, "propagate_liver", progress, [&](const core::ImageF& v, bool reversed) {
+        if (!reversed)
+            return propagate_head_up(v, seed, seed_slice, params, progress);
         if (seed_slice < 0 || seed_slice >= hu.size[2]) // before it is mapped, so that the message names it
             throw core::InvalidInputError("propagate_liver: seed slice " + std::to_string(seed_slice) +
                                           " is outside the image (0.." + std::to_string(hu.size[2] - 1) + ")");
@@ -1564,7 +1564,7 @@ LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, con
                           const LiverProgress& progress)
 {
     return head_up(hu, "segment_liver", progress,
-                   [&](const core::ImageF& v) { return segment_head_up(v, params, memory, progress); });
+                   [&](const core::ImageF& v, bool) { return segment_head_up(v, params, memory, progress); });
 }
 
 } // namespace lobe::seg

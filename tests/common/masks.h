@@ -34,4 +34,15 @@ inline double voxels_missed(const core::LabelImage3D& m, const core::LabelImage3
     return double(n);
 }
 
+//! Voxels where `a` and `b` differ; masks of different sizes count as differing everywhere.
+inline std::size_t voxels_differing(const core::LabelImage3D& a, const core::LabelImage3D& b)
+{
+    if (a.data.size() != b.data.size())
+        return a.data.size() > b.data.size() ? a.data.size() : b.data.size();
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < a.data.size(); ++i)
+        n += a.data[i] != b.data[i];
+    return n;
+}
+
 } // namespace lobe::test

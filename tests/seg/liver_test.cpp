@@ -22,6 +22,7 @@
 #include <iostream>
 #include <limits>
 #include <random>
+#include <string>
 
 using namespace lobe;
 
@@ -128,14 +129,8 @@ TEST(LiverPipeline, SlicesFromHeadToFeetGiveTheSameLiver)
     const seg::LiverResult down = seg::segment_liver(reversed);
     ASSERT_TRUE(up.start.found) << up.start.message;
     const int nz = c.hu.size[2];
-    const auto differing = [](const core::LabelImage3D& a, const core::LabelImage3D& b) {
-        std::size_t n = a.data.size() == b.data.size() ? 0 : std::max(a.data.size(), b.data.size());
-        for (std::size_t i = 0; i < std::min(a.data.size(), b.data.size()); ++i)
-            n += a.data[i] != b.data[i];
-        return n;
-    };
-    EXPECT_EQ(differing(core::reverse_slices(down.mask), up.mask), 0u);
-    EXPECT_EQ(differing(core::reverse_slices(down.stacked), up.stacked), 0u);
+    EXPECT_EQ(test::voxels_differing(core::reverse_slices(down.mask), up.mask), 0u);
+    EXPECT_EQ(test::voxels_differing(core::reverse_slices(down.stacked), up.stacked), 0u);
     EXPECT_TRUE(core::same_grid(down.mask, reversed));
     EXPECT_EQ(down.start.slice, nz - 1 - up.start.slice);
     EXPECT_EQ(down.seed.slice, nz - 1 - up.seed.slice);
@@ -428,10 +423,7 @@ TEST(LiverPipeline, TwoThreadsGiveTheMaskOfOne)
     const seg::LiverResult one = seg::segment_liver(c.hu, p);
     ASSERT_EQ(two.slices.size(), one.slices.size());
     EXPECT_GT(two.slices.size(), 10u);
-    std::size_t differ = 0;
-    for (std::size_t i = 0; i < one.mask.data.size(); ++i)
-        differ += one.mask.data[i] != two.mask.data[i];
-    EXPECT_EQ(differ, 0u);
+    EXPECT_EQ(test::voxels_differing(one.mask, two.mask), 0u);
 }
 
 // Growing pieces (LiverParams::drop_growing_pieces): past the liver's widest slice a separate
@@ -788,6 +780,17 @@ TEST(LiverPipeline, PropagationChecksItsSeed)
     core::ImageGeometry wrong = gs;
     wrong.size[0] = 16;
     EXPECT_THROW(seg::propagate_liver(img, core::LabelImage3D(wrong, 1), 3), core::InvalidInputError);
+    // Head to feet: the slice is checked before it is mapped, so the message names the one given.
+    const core::ImageF reversed = core::reverse_slices(img);
+    for (int k : {9, -1})
+        try {
+            seg::propagate_liver(reversed, core::LabelImage3D(gs, 1), k);
+            ADD_FAILURE() << "seed slice " << k << " accepted";
+        } catch (const core::InvalidInputError& e) {
+            EXPECT_NE(std::string(e.what()).find("seed slice " + std::to_string(k) + " is outside"), std::string::npos)
+                << e.what();
+        }
+    EXPECT_THROW(seg::propagate_liver(reversed, core::LabelImage3D(gs, 0), 3), core::InvalidInputError); // empty
 }
 
 namespace {
