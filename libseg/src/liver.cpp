@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -1255,10 +1256,9 @@ SnakeParams default_liver_snake()
 
 namespace {
 
-LiverResult propagate_head_up(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
-                              const LiverParams& params, const LiverProgress& progress)
+//! The seed propagate_liver is given: one slice of the image's size, on a slice of it, not empty.
+void check_seed(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice)
 {
-    check_image(hu, "propagate_liver");
     if (seed_slice < 0 || seed_slice >= hu.size[2])
         throw core::InvalidInputError("propagate_liver: seed slice " + std::to_string(seed_slice) +
                                       " is outside the image (0.." + std::to_string(hu.size[2] - 1) + ")");
@@ -1267,6 +1267,13 @@ LiverResult propagate_head_up(const core::ImageF& hu, const core::LabelImage3D& 
         throw core::InvalidInputError("propagate_liver: the seed must be one slice of the image's size");
     if (count(seed) == 0)
         throw core::InvalidInputError("propagate_liver: the seed is empty");
+}
+
+LiverResult propagate_head_up(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
+                              const LiverParams& params, const LiverProgress& progress)
+{
+    check_image(hu, "propagate_liver");
+    check_seed(hu, seed, seed_slice);
     Context c{hu, params, progress, nullptr, nullptr, -1, {}, {}};
     const core::ImageF seed_img = core::axial_slice(hu, seed_slice);
     c.tissue = tissue_under(gaussian_smooth(seed_img, 1.0), on_grid(seed, seed_img.geometry()));
@@ -1501,47 +1508,74 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
     return r;
 }
 
-//! The pipeline reads +k as towards the head (the start slice above the liver, the upward
-//! propagation's heart model and dome contact, the top slice). A volume whose slices run from
-//! head to feet (the third axis's z component negative) is segmented in reverse slice order and
-//! everything the result says of slices mapped back: the same liver as for the same anatomy
-//! stored head up (liver.md, "Orientation").
-LiverResult head_up(const core::ImageF& hu, const char* who, const LiverProgress& progress,
-                    const std::function<LiverResult(const core::ImageF&, bool reversed)>& run)
+//! The axes a volume is turned round on before the pipeline runs: each axis is made to point
+//! along the positive direction of the patient axis it runs closest to (LPS: +x to the left,
+//! +y to the back, +z to the head). The pipeline reads +k as towards the head (the start slice
+//! above the liver, the upward propagation's heart model and dome contact, the top slice); in
+//! plane it reads the anatomy through the direction cosines, but a few choices still fall on the
+//! voxel grid (the seed search's cells are laid from voxel (0, 0)), so the same scan stored with
+//! its rows or columns reversed (NIfTI's RAS against DICOM's LPS) gave a slightly different
+//! liver. Run on the canonical grid, every storage of the same voxels gives the same one.
+std::array<bool, 3> turned_axes(const core::ImageGeometry& g)
 {
-    if (!(hu.axis(2).z < 0.0))
-        return run(hu, false); // run checks the image
-    check_image(hu, who); // before reversing it
-    if (progress)
+    std::array<bool, 3> turn{};
+    for (int a = 0; a < 2; ++a) {
+        const core::Vec3 d = g.axis(a);
+        const double c = std::abs(d.x) >= std::abs(d.y) ? d.x : d.y;
+        turn[std::size_t(a)] = c < 0.0;
+    }
+    turn[2] = g.axis(2).z < 0.0; // a stack that is not craniocaudal is refused by the start slice
+    return turn;
+}
+
+//! Runs `run` on `hu` turned to the canonical grid (turned_axes) and maps everything the result
+//! says back to `hu`'s grid: its masks turned back, slice indices counted from the other end
+//! when the slices were reversed, the heart centre's voxel index mapped (liver.md, "Orientation").
+LiverResult canonical(const core::ImageF& hu, const char* who, const LiverProgress& progress,
+                      const std::function<LiverResult(const core::ImageF&, std::array<bool, 3> turn)>& run)
+{
+    const std::array<bool, 3> turn = turned_axes(hu);
+    if (!turn[0] && !turn[1] && !turn[2])
+        return run(hu, turn); // run checks the image
+    check_image(hu, who); // before turning it
+    if (progress && turn[2])
         progress("the slices run from head to feet: segmented in reverse order (slice numbers in these messages "
                  "count from the last slice)");
-    const int nz = hu.size[2];
-    LiverResult r = run(core::reverse_slices(hu), true);
-    const auto back = [nz](int k) { return k < 0 ? k : nz - 1 - k; };
+    LiverResult r = run(core::flip_axes(hu, turn), turn);
+    const auto back = [&](int k) { return k < 0 || !turn[2] ? k : hu.size[2] - 1 - k; };
     if (!r.mask.data.empty())
-        r.mask = core::reverse_slices(r.mask);
+        r.mask = core::flip_axes(r.mask, turn);
     if (!r.stacked.data.empty())
-        r.stacked = core::reverse_slices(r.stacked);
-    if (r.start.slice >= 0)
-        r.start.heart_centre.z = double(nz - 1) - r.start.heart_centre.z;
+        r.stacked = core::flip_axes(r.stacked, turn);
+    if (r.start.slice >= 0) {
+        double* centre[3] = {&r.start.heart_centre.x, &r.start.heart_centre.y, &r.start.heart_centre.z};
+        for (std::size_t a = 0; a < 3; ++a)
+            if (turn[a])
+                *centre[a] = double(hu.size[a] - 1) - *centre[a];
+    }
     r.start.slice = back(r.start.slice);
-    std::reverse(r.start.slice_scores.begin(), r.start.slice_scores.end());
+    if (turn[2])
+        std::reverse(r.start.slice_scores.begin(), r.start.slice_scores.end());
     r.seed.slice = back(r.seed.slice);
     if (!r.seed.mask.data.empty()) {
-        // The seed keeps its pixels; its one-slice grid is that slice of the input's.
+        // The seed's pixels turned back; its one-slice grid is that slice of the input's.
+        core::LabelImage3D m = core::flip_axes(r.seed.mask, {turn[0], turn[1], false});
         const core::Vec3 o = hu.index_to_physical(0, 0, r.seed.slice);
         core::ImageGeometry g = hu.geometry();
         g.origin = {o.x, o.y, o.z};
         g.size[2] = 1;
-        static_cast<core::ImageGeometry&>(r.seed.mask) = g;
+        static_cast<core::ImageGeometry&>(m) = g;
+        r.seed.mask = std::move(m);
     }
     r.seed_slice = back(r.seed_slice);
-    const int first = r.first_slice;
-    r.first_slice = back(r.last_slice);
-    r.last_slice = back(first);
-    for (auto& s : r.slices)
-        s.slice = back(s.slice);
-    std::reverse(r.slices.begin(), r.slices.end());
+    if (turn[2]) {
+        const int first = r.first_slice;
+        r.first_slice = back(r.last_slice);
+        r.last_slice = back(first);
+        for (auto& s : r.slices)
+            s.slice = back(s.slice);
+        std::reverse(r.slices.begin(), r.slices.end());
+    }
     return r;
 }
 
@@ -1550,21 +1584,21 @@ LiverResult head_up(const core::ImageF& hu, const char* who, const LiverProgress
 LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
                             const LiverParams& params, const LiverProgress& progress)
 {
-    return head_up(hu, "propagate_liver", progress, [&](const core::ImageF& v, bool reversed) {
-        if (!reversed)
+    return canonical(hu, "propagate_liver", progress, [&](const core::ImageF& v, std::array<bool, 3> turn) {
+        if (!turn[0] && !turn[1] && !turn[2])
             return propagate_head_up(v, seed, seed_slice, params, progress);
-        if (seed_slice < 0 || seed_slice >= hu.size[2]) // before it is mapped, so that the message names it
-            throw core::InvalidInputError("propagate_liver: seed slice " + std::to_string(seed_slice) +
-                                          " is outside the image (0.." + std::to_string(hu.size[2] - 1) + ")");
-        return propagate_head_up(v, seed, hu.size[2] - 1 - seed_slice, params, progress);
+        check_seed(hu, seed, seed_slice); // before it is mapped, so that the messages name the input's
+        return propagate_head_up(v, core::flip_axes(seed, {turn[0], turn[1], false}),
+                                 turn[2] ? hu.size[2] - 1 - seed_slice : seed_slice, params, progress);
     });
 }
 
 LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, const ShapeMemory* memory,
                           const LiverProgress& progress)
 {
-    return head_up(hu, "segment_liver", progress,
-                   [&](const core::ImageF& v, bool) { return segment_head_up(v, params, memory, progress); });
+    return canonical(hu, "segment_liver", progress, [&](const core::ImageF& v, std::array<bool, 3>) {
+        return segment_head_up(v, params, memory, progress);
+    });
 }
 
 } // namespace lobe::seg

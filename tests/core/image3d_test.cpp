@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 
 using namespace lobe::core;
@@ -122,6 +123,44 @@ TEST(Image3D, AxialSliceKeepsItsPlaceInSpace)
         }
     EXPECT_THROW(axial_slice(img, 4), InvalidInputError);
     EXPECT_THROW(axial_slice(img, -1), InvalidInputError);
+}
+
+// Any set of axes turned round: every voxel keeps its value and its physical position, the
+// turned axes' directions are negated and the others kept; twice is the identity (the origin to
+// rounding, as above).
+TEST(Image3D, FlipAxesKeepsEveryVoxelInPlace)
+{
+    Image3D<int> img(rotated(), 0);
+    for (std::size_t i = 0; i < img.data.size(); ++i)
+        img.data[i] = static_cast<int>(i);
+    for (const std::array<bool, 3> turn : {std::array<bool, 3>{true, false, false}, {false, true, false},
+                                           {true, true, false}, {true, true, true}}) {
+        const Image3D<int> f = flip_axes(img, turn);
+        ASSERT_EQ(f.size, img.size);
+        EXPECT_EQ(f.spacing, img.spacing);
+        for (int a = 0; a < 3; ++a) {
+            const double s = turn[std::size_t(a)] ? -1.0 : 1.0;
+            EXPECT_NEAR(f.axis(a).x, s * img.axis(a).x, 1e-12);
+            EXPECT_NEAR(f.axis(a).y, s * img.axis(a).y, 1e-12);
+            EXPECT_NEAR(f.axis(a).z, s * img.axis(a).z, 1e-12);
+        }
+        for (int k = 0; k < img.size[2]; ++k)
+            for (int j = 0; j < img.size[1]; j += 3)
+                for (int i = 0; i < img.size[0]; i += 2) {
+                    const int it = turn[0] ? img.size[0] - 1 - i : i, jt = turn[1] ? img.size[1] - 1 - j : j,
+                              kt = turn[2] ? img.size[2] - 1 - k : k;
+                    EXPECT_EQ(f.at(it, jt, kt), img.at(i, j, k));
+                    const Vec3 a = img.index_to_physical(i, j, k), b = f.index_to_physical(it, jt, kt);
+                    EXPECT_NEAR(a.x, b.x, 1e-9);
+                    EXPECT_NEAR(a.y, b.y, 1e-9);
+                    EXPECT_NEAR(a.z, b.z, 1e-9);
+                }
+        const Image3D<int> back = flip_axes(f, turn);
+        EXPECT_EQ(back.data, img.data);
+        EXPECT_EQ(back.direction, img.direction);
+        for (std::size_t a = 0; a < 3; ++a)
+            EXPECT_NEAR(back.origin[a], img.origin[a], 1e-9);
+    }
 }
 
 // Every voxel keeps its value and its physical position; twice is the identity (the origin to

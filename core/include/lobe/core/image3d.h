@@ -173,28 +173,43 @@ Image3D<T> axial_slice(const Image3D<T>& image, int k)
     return out;
 }
 
-//! `image` with its slices in reverse order, every voxel at the same physical position: the
-//! origin moves to the last slice and the third axis turns round. Reversing twice gives the
-//! image back (its origin to rounding). For code that reads +k as one anatomical direction
-//! (the liver pipeline reads it as towards the head).
+//! `image` with the axes flagged in `turn` turned round, every voxel at the same physical
+//! position: along a turned axis the voxel order reverses, the origin moves to the far end and
+//! the axis's direction is negated. Turning the same axes twice gives the image back (its origin
+//! to rounding). For code that reads an index direction as an anatomical one (the liver pipeline
+//! reads +k as towards the head, and runs on a grid whose axes point along the patient frame).
+template <class T>
+Image3D<T> flip_axes(const Image3D<T>& image, std::array<bool, 3> turn)
+{
+    ImageGeometry g = image.geometry();
+    const Vec3 far = g.index_to_physical(turn[0] ? g.size[0] - 1 : 0, turn[1] ? g.size[1] - 1 : 0,
+                                         turn[2] ? g.size[2] - 1 : 0);
+    if (g.size[0] > 0 && g.size[1] > 0 && g.size[2] > 0)
+        g.origin = {far.x, far.y, far.z};
+    for (std::size_t a = 0; a < 3; ++a)
+        if (turn[a])
+            for (std::size_t r = 0; r < 3; ++r)
+                g.direction[3 * r + a] = -g.direction[3 * r + a];
+    Image3D<T> out(g);
+    const int nx = g.size[0], ny = g.size[1], nz = g.size[2];
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < ny; ++j) {
+            const auto from = image.data.begin() + static_cast<std::ptrdiff_t>(image.index(0, turn[1] ? ny - 1 - j : j,
+                                                                                           turn[2] ? nz - 1 - k : k));
+            const auto to = out.data.begin() + static_cast<std::ptrdiff_t>(out.index(0, j, k));
+            if (turn[0])
+                std::reverse_copy(from, from + nx, to);
+            else
+                std::copy(from, from + nx, to);
+        }
+    return out;
+}
+
+//! `image` with its slices in reverse order (flip_axes of the third axis alone).
 template <class T>
 Image3D<T> reverse_slices(const Image3D<T>& image)
 {
-    ImageGeometry g = image.geometry();
-    if (g.size[2] > 0) {
-        const Vec3 o = g.index_to_physical(0, 0, g.size[2] - 1);
-        g.origin = {o.x, o.y, o.z};
-    }
-    for (int r = 0; r < 3; ++r)
-        g.direction[static_cast<std::size_t>(3 * r + 2)] = -g.direction[static_cast<std::size_t>(3 * r + 2)];
-    Image3D<T> out(g);
-    const std::size_t n = static_cast<std::size_t>(g.size[0]) * static_cast<std::size_t>(g.size[1]);
-    for (int k = 0; k < g.size[2]; ++k) {
-        const auto from = image.data.begin() + static_cast<std::ptrdiff_t>(n * static_cast<std::size_t>(g.size[2] - 1 - k));
-        std::copy(from, from + static_cast<std::ptrdiff_t>(n),
-                  out.data.begin() + static_cast<std::ptrdiff_t>(n * static_cast<std::size_t>(k)));
-    }
-    return out;
+    return flip_axes(image, {false, false, true});
 }
 
 using ImageF = Image3D<float>;

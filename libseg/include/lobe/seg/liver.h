@@ -289,8 +289,8 @@ using LiverProgress = std::function<void(const std::string&)>;
 //! Propagates a liver contour through `hu` (the CT in HU, or a normalised MRI) from the one-slice
 //! mask `seed` (size[2] == 1, on slice `seed_slice`), which must lie inside the liver: CDSG
 //! segments the seed slice, then every next slice from the previous contour, in both directions,
-//! until the stop rule ends the liver. Slices may run either way along the body (see
-//! segment_liver). \throw InvalidInputError on a seed off the grid or empty.
+//! until the stop rule ends the liver. Any axis may be reversed (see segment_liver); the seed is
+//! on `hu`'s grid. \throw InvalidInputError on a seed off the grid or empty.
 LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
                             const LiverParams& params = {}, const LiverProgress& progress = {});
 
@@ -298,9 +298,10 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
 //! shape memory (may be null), 3-D pass. `hu` is a CT in HU or an MR in its own units
 //! (`LiverParams::modality`). \throw LiverNotFoundError when no liver is found (with
 //! the reason), InvalidInputError for an image it cannot take (too few slices, non-finite).
-//! The slices may run from feet to head or from head to feet (the sign of the third axis's z
-//! component tells): the latter is segmented in reverse order and the result, its masks and
-//! every slice index in it, mapped back to `hu`'s grid.
+//! The volume may be stored with any of its axes reversed (slices from head to feet, rows or
+//! columns as in NIfTI's RAS): it is segmented on a copy whose axes point along the patient frame
+//! (LPS) and the result, its masks, every slice index and the heart centre, mapped back to `hu`'s
+//! grid, so every such storage of the same voxels gives the same liver.
 LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params = {}, const ShapeMemory* memory = nullptr,
                           const LiverProgress& progress = {});
 
