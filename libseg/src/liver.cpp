@@ -1508,58 +1508,50 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
     return r;
 }
 
-//! The axes a volume is turned round on before the pipeline runs: each axis is made to point
-//! along the positive direction of the patient axis it runs closest to (LPS: +x to the left,
-//! +y to the back, +z to the head). The pipeline reads +k as towards the head (the start slice
-//! above the liver, the upward propagation's heart model and dome contact, the top slice); in
-//! plane it reads the anatomy through the direction cosines, but a few choices still fall on the
-//! voxel grid (the seed search's cells are laid from voxel (0, 0)), so the same scan stored with
-//! its rows or columns reversed (NIfTI's RAS against DICOM's LPS) gave a slightly different
-//! liver. Run on the canonical grid, every storage of the same voxels gives the same one.
-std::array<bool, 3> turned_axes(const core::ImageGeometry& g)
-{
-    std::array<bool, 3> turn{};
-    for (int a = 0; a < 2; ++a) {
-        const core::Vec3 d = g.axis(a);
-        const double c = std::abs(d.x) >= std::abs(d.y) ? d.x : d.y;
-        turn[std::size_t(a)] = c < 0.0;
-    }
-    turn[2] = g.axis(2).z < 0.0; // a stack that is not craniocaudal is refused by the start slice
-    return turn;
-}
-
-//! Runs `run` on `hu` turned to the canonical grid (turned_axes) and maps everything the result
-//! says back to `hu`'s grid: its masks turned back, slice indices counted from the other end
-//! when the slices were reversed, the heart centre's voxel index mapped (liver.md, "Orientation").
+//! Runs `run` on `hu` with its axes along the patient frame (core::patient_axis_order: LPS, +z to
+//! the head) and maps everything the result says back to `hu`'s grid. The pipeline reads +k as
+//! towards the head (the start slice above the liver, the upward propagation's heart model and
+//! dome contact, the top slice); in plane it reads the anatomy through the direction cosines, but
+//! a few choices still fall on the voxel grid (the seed search's cells are laid from voxel
+//! (0, 0)), so the same scan stored with its rows or columns reversed (NIfTI's RAS against
+//! DICOM's LPS) gave a slightly different liver. On the patient frame's grid every storage of
+//! the same voxels gives the same one (liver.md, "Orientation"). A slice index in the result
+//! counts along the input's axis that runs craniocaudally, from the input's first slice.
 LiverResult canonical(const core::ImageF& hu, const char* who, const LiverProgress& progress,
-                      const std::function<LiverResult(const core::ImageF&, std::array<bool, 3> turn)>& run)
+                      const std::function<LiverResult(const core::ImageF&, const core::AxisOrder&)>& run)
 {
-    const std::array<bool, 3> turn = turned_axes(hu);
-    if (!turn[0] && !turn[1] && !turn[2])
-        return run(hu, turn); // run checks the image
-    check_image(hu, who); // before turning it
-    if (progress && turn[2])
+    const core::AxisOrder order = core::patient_axis_order(hu);
+    if (order.identity())
+        return run(hu, order); // run checks the image
+    check_image(hu, who); // before reordering it
+    if (progress && !order.flips_only())
+        progress("the slices are not axial: segmented on the volume's axial slices (slice numbers count along its "
+                 "axis " + std::to_string(order.from[2]) + ", which runs along the body)");
+    if (progress && order.flip[2])
         progress("the slices run from head to feet: segmented in reverse order (slice numbers in these messages "
-                 "count from the last slice)");
-    LiverResult r = run(core::flip_axes(hu, turn), turn);
-    const auto back = [&](int k) { return k < 0 || !turn[2] ? k : hu.size[2] - 1 - k; };
+                 "count from the last one)");
+    LiverResult r = run(core::reorder_axes(hu, order), order);
+    const core::AxisOrder back_order = order.inverse();
+    const int nz = hu.size[std::size_t(order.from[2])];
+    const auto back = [&](int k) { return k < 0 || !order.flip[2] ? k : nz - 1 - k; };
     if (!r.mask.data.empty())
-        r.mask = core::flip_axes(r.mask, turn);
+        r.mask = core::reorder_axes(r.mask, back_order);
     if (!r.stacked.data.empty())
-        r.stacked = core::flip_axes(r.stacked, turn);
+        r.stacked = core::reorder_axes(r.stacked, back_order);
     if (r.start.slice >= 0) {
-        double* centre[3] = {&r.start.heart_centre.x, &r.start.heart_centre.y, &r.start.heart_centre.z};
+        std::array<int, 3> canonical_size{};
         for (std::size_t a = 0; a < 3; ++a)
-            if (turn[a])
-                *centre[a] = double(hu.size[a] - 1) - *centre[a];
+            canonical_size[a] = hu.size[std::size_t(order.from[a])];
+        r.start.heart_centre = back_order.index_of(r.start.heart_centre, canonical_size);
     }
     r.start.slice = back(r.start.slice);
-    if (turn[2])
+    if (order.flip[2])
         std::reverse(r.start.slice_scores.begin(), r.start.slice_scores.end());
     r.seed.slice = back(r.seed.slice);
-    if (!r.seed.mask.data.empty()) {
-        // The seed's pixels turned back; its one-slice grid is that slice of the input's.
-        core::LabelImage3D m = core::flip_axes(r.seed.mask, {turn[0], turn[1], false});
+    if (!r.seed.mask.data.empty() && order.from[2] == 2) {
+        // The seed's pixels turned back; its one-slice grid is that slice of the input's. (On a
+        // stack that is not axial the seed stays the axial slice it is, with that geometry.)
+        core::LabelImage3D m = core::reorder_axes(r.seed.mask, back_order);
         const core::Vec3 o = hu.index_to_physical(0, 0, r.seed.slice);
         core::ImageGeometry g = hu.geometry();
         g.origin = {o.x, o.y, o.z};
@@ -1568,7 +1560,7 @@ LiverResult canonical(const core::ImageF& hu, const char* who, const LiverProgre
         r.seed.mask = std::move(m);
     }
     r.seed_slice = back(r.seed_slice);
-    if (turn[2]) {
+    if (order.flip[2]) {
         const int first = r.first_slice;
         r.first_slice = back(r.last_slice);
         r.last_slice = back(first);
@@ -1584,19 +1576,22 @@ LiverResult canonical(const core::ImageF& hu, const char* who, const LiverProgre
 LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
                             const LiverParams& params, const LiverProgress& progress)
 {
-    return canonical(hu, "propagate_liver", progress, [&](const core::ImageF& v, std::array<bool, 3> turn) {
-        if (!turn[0] && !turn[1] && !turn[2])
+    return canonical(hu, "propagate_liver", progress, [&](const core::ImageF& v, const core::AxisOrder& order) {
+        if (order.identity())
             return propagate_head_up(v, seed, seed_slice, params, progress);
+        if (!order.flips_only())
+            throw core::InvalidInputError("propagate_liver: the volume's slices are not axial, so a seed slice of it "
+                                          "is not an axial one (segment_liver takes any orientation)");
         check_seed(hu, seed, seed_slice); // before it is mapped, so that the messages name the input's
-        return propagate_head_up(v, core::flip_axes(seed, {turn[0], turn[1], false}),
-                                 turn[2] ? hu.size[2] - 1 - seed_slice : seed_slice, params, progress);
+        return propagate_head_up(v, core::flip_axes(seed, {order.flip[0], order.flip[1], false}),
+                                 order.flip[2] ? hu.size[2] - 1 - seed_slice : seed_slice, params, progress);
     });
 }
 
 LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params, const ShapeMemory* memory,
                           const LiverProgress& progress)
 {
-    return canonical(hu, "segment_liver", progress, [&](const core::ImageF& v, std::array<bool, 3>) {
+    return canonical(hu, "segment_liver", progress, [&](const core::ImageF& v, const core::AxisOrder&) {
         return segment_head_up(v, params, memory, progress);
     });
 }

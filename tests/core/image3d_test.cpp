@@ -163,6 +163,51 @@ TEST(Image3D, FlipAxesKeepsEveryVoxelInPlace)
     }
 }
 
+// Axes that change place too (a coronal stack: rows along x, columns to the feet, slices to the
+// back): every voxel keeps its value and physical position, and the patient frame's order found
+// from the stored grid's directions takes it back to the axial grid exactly (its data, and its
+// geometry to rounding).
+TEST(Image3D, ReorderAxesToThePatientFrame)
+{
+    Image3D<int> img(rotated(), 0);
+    for (std::size_t i = 0; i < img.data.size(); ++i)
+        img.data[i] = static_cast<int>(i);
+    EXPECT_TRUE(patient_axis_order(img).identity()); // rotated 0.4 rad about z: still nearest LPS
+    AxisOrder coronal;
+    coronal.from = {0, 2, 1};
+    coronal.flip = {false, true, false};
+    const Image3D<int> c = reorder_axes(img, coronal);
+    EXPECT_EQ(c.size, (std::array<int, 3>{10, 5, 20}));
+    EXPECT_EQ(c.spacing, (std::array<double, 3>{0.5, 2.5, 0.75}));
+    EXPECT_NEAR(c.axis(1).z, -1.0, 1e-12);
+    for (int k = 0; k < c.size[2]; k += 3)
+        for (int j = 0; j < c.size[1]; ++j)
+            for (int i = 0; i < c.size[0]; i += 2) {
+                const int io = i, jo = k, ko = img.size[2] - 1 - j;
+                EXPECT_EQ(c.at(i, j, k), img.at(io, jo, ko));
+                const Vec3 a = img.index_to_physical(io, jo, ko), b = c.index_to_physical(i, j, k);
+                EXPECT_NEAR(a.x, b.x, 1e-9);
+                EXPECT_NEAR(a.y, b.y, 1e-9);
+                EXPECT_NEAR(a.z, b.z, 1e-9);
+            }
+    const AxisOrder back = patient_axis_order(c);
+    EXPECT_EQ(back.from, (std::array<int, 3>{0, 2, 1}));
+    EXPECT_EQ(back.flip, (std::array<bool, 3>{false, false, true}));
+    const Image3D<int> axial = reorder_axes(c, back);
+    EXPECT_EQ(axial.size, img.size);
+    EXPECT_EQ(axial.data, img.data);
+    for (std::size_t e = 0; e < 9; ++e)
+        EXPECT_NEAR(axial.direction[e], img.direction[e], 1e-12);
+    for (std::size_t a = 0; a < 3; ++a)
+        EXPECT_NEAR(axial.origin[a], img.origin[a], 1e-9);
+    EXPECT_EQ(reorder_axes(c, coronal.inverse()).data, img.data);
+    // index_of maps a continuous index the same way as the voxels.
+    const Vec3 q = back.index_of(Vec3{3.0, 1.5, 7.0}, c.size);
+    EXPECT_NEAR(q.x, 3.0, 1e-12);
+    EXPECT_NEAR(q.y, 7.0, 1e-12);
+    EXPECT_NEAR(q.z, img.size[2] - 1 - 1.5, 1e-12);
+}
+
 // Every voxel keeps its value and its physical position; twice is the identity (the origin to
 // rounding: two sums of (n - 1) * spacing along the axis and back).
 TEST(Image3D, ReverseSlicesKeepsEveryVoxelInPlace)

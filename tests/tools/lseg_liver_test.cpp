@@ -8,6 +8,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -133,6 +136,45 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     const double dice = test::dice_from_eval(r.out);
     ASSERT_GE(dice, 0) << r.out;
     EXPECT_GE(dice, 0.7) << r.out;
+}
+
+// The same phantom stored as a coronal stack (rows along x, columns to the feet, slices to the
+// back): the command segments it on its axial grid, so its mask is the axial run's reordered,
+// voxel for voxel, and its axial, coronal and sagittal pictures are the axial run's, byte for
+// byte (the pictures follow the voxel axes, so the stack is pictured on its axial grid).
+TEST(LsegLiver, ACoronalStackGivesTheSameMaskAndPictures)
+{
+    const auto dir = test::scratch_dir();
+    auto r = test::run_tool(LPHANTOM_EXE, q(dir / "ph") + " --spacing 2.1,2.1,5 --seed 4 --quiet", dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    core::AxisOrder order;
+    order.from = {0, 2, 1};
+    order.flip = {false, true, false};
+    const auto axial_ct = std::get<core::ImageI16>(io::read_image(dir / "ph" / "ct.mhd"));
+    io::write_image(dir / "coronal.mhd", core::reorder_axes(axial_ct, order));
+    for (const char* name : {"axial", "coronal"}) {
+        const fs::path in = std::string(name) == "axial" ? dir / "ph" / "ct.mhd" : dir / "coronal.mhd";
+        r = run_lseg("liver " + q(in) + " -o " + q(dir / (std::string(name) + ".h5")) + " --mask " +
+                         q(dir / (std::string(name) + "-mask.mhd")) + " --png " + q(dir / name) + " --quiet",
+                     dir);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+    }
+    const auto axial = std::get<core::LabelImage3D>(io::read_image(dir / "axial-mask.mhd"));
+    const auto coronal = std::get<core::LabelImage3D>(io::read_image(dir / "coronal-mask.mhd"));
+    const core::LabelImage3D expected = core::reorder_axes(axial, order);
+    ASSERT_EQ(coronal.size, expected.size);
+    EXPECT_TRUE(coronal.data == expected.data);
+    EXPECT_GT(std::count(axial.data.begin(), axial.data.end(), std::uint8_t{1}), 0);
+    const auto bytes = [](const fs::path& f) {
+        std::ifstream in(f, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    for (const char* view : {"axial", "coronal", "sagittal"}) {
+        const std::string png = std::string("liver-") + view + ".png";
+        const std::string a = bytes(dir / "axial" / png);
+        EXPECT_FALSE(a.empty()) << view;
+        EXPECT_TRUE(a == bytes(dir / "coronal" / png)) << view;
+    }
 }
 
 // Inputs it cannot handle: a message naming the file, exit code 2, and no output left behind.

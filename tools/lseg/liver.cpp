@@ -43,15 +43,26 @@ std::string fixed(double v, int digits)
     return s.str();
 }
 
-//! Axial (through the seed slice), coronal and sagittal (through the liver's centroid) pictures.
-void write_pictures(const fs::path& dir, const core::ImageF& image, const seg::LiverResult& r)
+//! Axial, coronal and sagittal pictures through the liver's centroid.
+//! The pictures' views follow the voxel axes (turning an axis round where it points the other
+//! way), so a stack that is not axial (a coronal series) is pictured on its axial grid.
+void write_pictures(const fs::path& dir, const core::ImageF& stored, const seg::LiverResult& r)
 {
     fs::create_directories(dir);
+    const core::AxisOrder order = core::patient_axis_order(stored);
+    core::ImageF turned;
+    core::LabelImage3D turned_mask;
+    if (!order.flips_only()) {
+        turned = core::reorder_axes(stored, order);
+        turned_mask = core::reorder_axes(r.mask, order);
+    }
+    const core::ImageF& image = order.flips_only() ? stored : turned;
+    const core::LabelImage3D& mask = order.flips_only() ? r.mask : turned_mask;
     double ci = 0, cj = 0, ck = 0, n = 0;
-    for (int k = 0; k < r.mask.size[2]; ++k)
-        for (int j = 0; j < r.mask.size[1]; ++j)
-            for (int i = 0; i < r.mask.size[0]; ++i)
-                if (r.mask.at(i, j, k)) {
+    for (int k = 0; k < mask.size[2]; ++k)
+        for (int j = 0; j < mask.size[1]; ++j)
+            for (int i = 0; i < mask.size[0]; ++i)
+                if (mask.at(i, j, k)) {
                     ci += i;
                     cj += j;
                     ck += k;
@@ -59,7 +70,7 @@ void write_pictures(const fs::path& dir, const core::ImageF& image, const seg::L
                 }
     const int centre[3] = {static_cast<int>(ci / n), static_cast<int>(cj / n), static_cast<int>(ck / n)};
     tools::Overlay ov;
-    ov.labels = &r.mask;
+    ov.labels = &mask;
     ov.fill_opacity = 0.25;
     ov.colours = {{1, {255, 200, 0}, "liver"}};
     const std::pair<tools::SliceAxis, int> views[] = {{tools::SliceAxis::Axial, centre[2]},

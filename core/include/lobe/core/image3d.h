@@ -173,36 +173,121 @@ Image3D<T> axial_slice(const Image3D<T>& image, int k)
     return out;
 }
 
-//! `image` with the axes flagged in `turn` turned round, every voxel at the same physical
-//! position: along a turned axis the voxel order reverses, the origin moves to the far end and
-//! the axis's direction is negated. Turning the same axes twice gives the image back (its origin
-//! to rounding). For code that reads an index direction as an anatomical one (the liver pipeline
-//! reads +k as towards the head, and runs on a grid whose axes point along the patient frame).
+//! A reordering of a grid's axes: axis a of the new grid is axis `from[a]` of the old one,
+//! reversed where `flip[a]`. Every voxel keeps its physical position (reorder_axes).
+struct AxisOrder {
+    std::array<int, 3> from{0, 1, 2};
+    std::array<bool, 3> flip{false, false, false};
+
+    bool identity() const { return from == std::array<int, 3>{0, 1, 2} && !flip[0] && !flip[1] && !flip[2]; }
+    //! Whether the axes only turn round, none changing place.
+    bool flips_only() const { return from == std::array<int, 3>{0, 1, 2}; }
+    //! The order that takes the new grid back to the old one.
+    AxisOrder inverse() const
+    {
+        AxisOrder inv;
+        for (std::size_t a = 0; a < 3; ++a) {
+            inv.from[static_cast<std::size_t>(from[a])] = static_cast<int>(a);
+            inv.flip[static_cast<std::size_t>(from[a])] = flip[a];
+        }
+        return inv;
+    }
+    //! The new grid's continuous index of a continuous index `old` of the old grid (`old_size`).
+    Vec3 index_of(const Vec3& old, const std::array<int, 3>& old_size) const
+    {
+        Vec3 out;
+        for (int a = 0; a < 3; ++a) {
+            const int f = from[static_cast<std::size_t>(a)];
+            out[a] = flip[static_cast<std::size_t>(a)] ? double(old_size[static_cast<std::size_t>(f)] - 1) - old[f] : old[f];
+        }
+        return out;
+    }
+};
+
+//! The order that turns `g` onto the patient frame (LPS): axis a of the new grid runs along
+//! patient axis a (x to the left, y to the back, z to the head), positively. Each old axis goes
+//! to the patient axis it runs closest to (the assignment maximising the sum of |cosines|; ties
+//! keep the old order), so an axial stack stays axial and a coronal or sagittal one becomes
+//! axial. The identity for a grid already so stored.
+inline AxisOrder patient_axis_order(const ImageGeometry& g)
+{
+    static constexpr std::array<std::array<int, 3>, 6> kPermutations{
+        {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}}};
+    // p[a]: the patient axis old axis a goes to.
+    std::array<int, 3> best = kPermutations[0];
+    double best_sum = -1.0;
+    for (const auto& p : kPermutations) {
+        double sum = 0.0;
+        for (int a = 0; a < 3; ++a)
+            sum += std::abs(g.axis(a)[p[static_cast<std::size_t>(a)]]);
+        if (sum > best_sum + 1e-9) {
+            best_sum = sum;
+            best = p;
+        }
+    }
+    AxisOrder o;
+    for (int a = 0; a < 3; ++a) {
+        const auto to = static_cast<std::size_t>(best[static_cast<std::size_t>(a)]);
+        o.from[to] = a;
+        o.flip[to] = g.axis(a)[best[static_cast<std::size_t>(a)]] < 0.0;
+    }
+    return o;
+}
+
+//! `image` on its axes reordered by `order`, every voxel at the same physical position: the
+//! spacing and direction columns follow their axes, a reversed axis's direction is negated and
+//! the origin moves to the voxel that becomes (0, 0, 0). reorder_axes(reorder_axes(i, o),
+//! o.inverse()) gives the image back (its origin to rounding). For code that reads an index
+//! direction as an anatomical one (the liver pipeline reads +k as towards the head).
+template <class T>
+Image3D<T> reorder_axes(const Image3D<T>& image, const AxisOrder& order)
+{
+    const ImageGeometry& in = image.geometry();
+    ImageGeometry g = in;
+    std::array<int, 3> start{0, 0, 0};
+    const std::array<std::ptrdiff_t, 3> in_stride{1, in.size[0], std::ptrdiff_t(in.size[0]) * in.size[1]};
+    std::array<std::ptrdiff_t, 3> stride{};
+    for (std::size_t a = 0; a < 3; ++a) {
+        const auto f = static_cast<std::size_t>(order.from[a]);
+        g.size[a] = in.size[f];
+        g.spacing[a] = in.spacing[f];
+        const double s = order.flip[a] ? -1.0 : 1.0;
+        for (std::size_t r = 0; r < 3; ++r)
+            g.direction[3 * r + a] = s * in.direction[3 * r + f];
+        if (order.flip[a])
+            start[f] = in.size[f] - 1;
+        stride[a] = order.flip[a] ? -in_stride[f] : in_stride[f];
+    }
+    if (in.voxel_count() > 0) {
+        const Vec3 o = in.index_to_physical(start[0], start[1], start[2]);
+        g.origin = {o.x, o.y, o.z};
+    }
+    Image3D<T> out(g);
+    if (out.data.empty())
+        return out;
+    const auto base = static_cast<std::ptrdiff_t>(in.index(start[0], start[1], start[2]));
+    auto to = out.data.begin();
+    for (int k = 0; k < g.size[2]; ++k)
+        for (int j = 0; j < g.size[1]; ++j) {
+            const std::ptrdiff_t row = base + k * stride[2] + j * stride[1];
+            if (stride[0] == 1) {
+                std::copy(image.data.begin() + row, image.data.begin() + row + g.size[0], to);
+            } else {
+                for (int i = 0; i < g.size[0]; ++i)
+                    to[i] = image.data[static_cast<std::size_t>(row + i * stride[0])];
+            }
+            to += g.size[0];
+        }
+    return out;
+}
+
+//! `image` with the axes flagged in `turn` turned round, none changing place (reorder_axes).
 template <class T>
 Image3D<T> flip_axes(const Image3D<T>& image, std::array<bool, 3> turn)
 {
-    ImageGeometry g = image.geometry();
-    const Vec3 far = g.index_to_physical(turn[0] ? g.size[0] - 1 : 0, turn[1] ? g.size[1] - 1 : 0,
-                                         turn[2] ? g.size[2] - 1 : 0);
-    if (g.size[0] > 0 && g.size[1] > 0 && g.size[2] > 0)
-        g.origin = {far.x, far.y, far.z};
-    for (std::size_t a = 0; a < 3; ++a)
-        if (turn[a])
-            for (std::size_t r = 0; r < 3; ++r)
-                g.direction[3 * r + a] = -g.direction[3 * r + a];
-    Image3D<T> out(g);
-    const int nx = g.size[0], ny = g.size[1], nz = g.size[2];
-    for (int k = 0; k < nz; ++k)
-        for (int j = 0; j < ny; ++j) {
-            const auto from = image.data.begin() + static_cast<std::ptrdiff_t>(image.index(0, turn[1] ? ny - 1 - j : j,
-                                                                                           turn[2] ? nz - 1 - k : k));
-            const auto to = out.data.begin() + static_cast<std::ptrdiff_t>(out.index(0, j, k));
-            if (turn[0])
-                std::reverse_copy(from, from + nx, to);
-            else
-                std::copy(from, from + nx, to);
-        }
-    return out;
+    AxisOrder o;
+    o.flip = turn;
+    return reorder_axes(image, o);
 }
 
 //! `image` with its slices in reverse order (flip_axes of the third axis alone).

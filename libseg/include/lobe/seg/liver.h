@@ -290,7 +290,8 @@ using LiverProgress = std::function<void(const std::string&)>;
 //! mask `seed` (size[2] == 1, on slice `seed_slice`), which must lie inside the liver: CDSG
 //! segments the seed slice, then every next slice from the previous contour, in both directions,
 //! until the stop rule ends the liver. Any axis may be reversed (see segment_liver); the seed is
-//! on `hu`'s grid. \throw InvalidInputError on a seed off the grid or empty.
+//! on `hu`'s grid. \throw InvalidInputError on a seed off the grid or empty, or a volume whose
+//! slices are not axial (its seed slice would not be an axial one).
 LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& seed, int seed_slice,
                             const LiverParams& params = {}, const LiverProgress& progress = {});
 
@@ -299,9 +300,11 @@ LiverResult propagate_liver(const core::ImageF& hu, const core::LabelImage3D& se
 //! (`LiverParams::modality`). \throw LiverNotFoundError when no liver is found (with
 //! the reason), InvalidInputError for an image it cannot take (too few slices, non-finite).
 //! The volume may be stored with any of its axes reversed (slices from head to feet, rows or
-//! columns as in NIfTI's RAS): it is segmented on a copy whose axes point along the patient frame
-//! (LPS) and the result, its masks, every slice index and the heart centre, mapped back to `hu`'s
-//! grid, so every such storage of the same voxels gives the same liver.
+//! columns as in NIfTI's RAS) or in another plane (a coronal stack): it is segmented on a copy
+//! whose axes run along the patient frame (LPS, core::patient_axis_order) and the result mapped
+//! back to `hu`'s grid (the masks, the heart centre; a slice index counts along `hu`'s axis that
+//! runs along the body; the seed stays on its axial slice's own grid when `hu` is not axial), so
+//! every such storage of the same voxels gives the same liver.
 LiverResult segment_liver(const core::ImageF& hu, const LiverParams& params = {}, const ShapeMemory* memory = nullptr,
                           const LiverProgress& progress = {});
 
