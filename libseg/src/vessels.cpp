@@ -206,10 +206,39 @@ struct Stopwatch {
     }
 };
 
+VesselResult vessels_on_patient_axes(const core::ImageF& image, const core::LabelImage3D& liver,
+                                     const VesselParams& params, const VesselProgress& progress);
+
 } // namespace
 
+//! Runs on the volume reordered onto the patient frame (core::patient_axis_order) and reorders the
+//! images back: the filters and the skeleton follow voxel order, so without it the same scan
+//! stored with reversed axes or as a coronal stack gave slightly different trees (liver.md,
+//! "Orientation"). The graph is in mm and needs no mapping.
 VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D& liver, const VesselParams& params,
                              const VesselProgress& progress)
+{
+    const core::AxisOrder order = core::patient_axis_order(image);
+    if (order.identity())
+        return vessels_on_patient_axes(image, liver, params, progress);
+    detail::check_image(image, "segment_vessels: image"); // before reordering
+    detail::check_same_grid(image, liver, "segment_vessels: the liver mask");
+    VesselResult r = vessels_on_patient_axes(core::reorder_axes(image, order), core::reorder_axes(liver, order), params,
+                                             progress);
+    const core::AxisOrder back = order.inverse();
+    for (core::LabelImage3D* m : {&r.labels, &r.seeds})
+        if (!m->data.empty())
+            *m = core::reorder_axes(*m, back);
+    for (core::ImageF* m : {&r.vesselness, &r.feature, &r.connectedness})
+        if (!m->data.empty())
+            *m = core::reorder_axes(*m, back);
+    return r;
+}
+
+namespace {
+
+VesselResult vessels_on_patient_axes(const core::ImageF& image, const core::LabelImage3D& liver,
+                                     const VesselParams& params, const VesselProgress& progress)
 {
     detail::check_image(image, "segment_vessels: image");
     detail::check_same_grid(image, liver, "segment_vessels: the liver mask");
@@ -997,6 +1026,8 @@ VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D
     say(res.message);
     return res;
 }
+
+} // namespace
 
 CentrelineEvaluation evaluate_centrelines(const core::CentrelineGraph& segmented, const core::CentrelineGraph& reference,
                                           const core::LabelImage3D* region, const CentrelineMatchParams& params)

@@ -117,6 +117,29 @@ TEST(Tumours, FindsTheLobularTheSatelliteAndTheBoundaryTumour)
     EXPECT_LT(r.parenchyma, 110.0);
 }
 
+// The same phantom stored as a coronal stack, with the vessel mask: the same tumours, mask voxel
+// for voxel (reordered), centroids in mm. Unlike the vessels' filters and skeleton (which needed
+// reordering onto the patient frame: Vessels.ACoronalStackGivesTheSameTrees), the clustering and
+// the per-tumour snakes do not depend on voxel order; this guards that.
+TEST(Tumours, ACoronalStackGivesTheSameTumours)
+{
+    const Case c = make_case({1.2, 1.2, 2.0}, 21);
+    core::AxisOrder order;
+    order.from = {0, 2, 1};
+    order.flip = {false, true, false};
+    const auto axial = seg::segment_tumours(c.hu, c.liver, &c.vessels);
+    const core::LabelImage3D vessels = core::reorder_axes(c.vessels, order);
+    const auto coronal =
+        seg::segment_tumours(core::reorder_axes(c.hu, order), core::reorder_axes(c.liver, order), &vessels);
+    ASSERT_TRUE(axial.found) << axial.message;
+    EXPECT_TRUE(core::reorder_axes(axial.mask, order).data == coronal.mask.data);
+    ASSERT_EQ(coronal.tumours.size(), axial.tumours.size());
+    for (std::size_t t = 0; t < axial.tumours.size(); ++t) {
+        EXPECT_LT(core::distance(coronal.tumours[t].centroid, axial.tumours[t].centroid), 1e-6);
+        EXPECT_EQ(coronal.tumours[t].volume_ml, axial.tumours[t].volume_ml);
+    }
+}
+
 // The tumour the liver's surface cuts (the thesis's "tumour next to the ribs"): the surface rim,
 // left out of the clustering (it averages liver and fat), is given back where the tumour reaches
 // it, so the tumour is reported touching the surface and reaches the liver's outer voxel layer.

@@ -111,6 +111,32 @@ TEST(Vessels, PhantomTreesToTheFourthLevel)
     EXPECT_NEAR(r.portal_ml + r.hepatic_ml, double(voxels) * 1.2 * 1.2 * 2.0 / 1000, 1e-6);
 }
 
+// The same phantom stored as a coronal stack (rows along x, columns to the feet, slices to the
+// back): segment_vessels runs on the volume reordered onto the patient frame, so the trees are
+// the same: the labels voxel for voxel (reordered), the graph node for node in mm. Without the
+// reordering the filters and the skeleton followed voxel order (on the demo phantom 87 skeleton
+// segments against 78, hepatic 29.78 against 29.79 mL).
+TEST(Vessels, ACoronalStackGivesTheSameTrees)
+{
+    const Case c = make_case({1.2, 1.2, 2.0}, 21);
+    core::AxisOrder order;
+    order.from = {0, 2, 1};
+    order.flip = {false, true, false};
+    const auto axial = seg::segment_vessels(c.hu, c.liver);
+    const auto coronal = seg::segment_vessels(core::reorder_axes(c.hu, order), core::reorder_axes(c.liver, order));
+    ASSERT_TRUE(axial.found) << axial.message;
+    ASSERT_TRUE(core::same_grid(coronal.labels, core::reorder_axes(c.liver, order)));
+    EXPECT_TRUE(core::reorder_axes(axial.labels, order).data == coronal.labels.data);
+    ASSERT_EQ(coronal.graph.nodes.size(), axial.graph.nodes.size());
+    ASSERT_EQ(coronal.graph.edges.size(), axial.graph.edges.size());
+    double furthest = 0;
+    for (std::size_t n = 0; n < axial.graph.nodes.size(); ++n)
+        furthest = std::max(furthest, core::distance(axial.graph.nodes[n].position, coronal.graph.nodes[n].position));
+    EXPECT_LT(furthest, 1e-6); // mm: the same voxels at the same places, to rounding of the origin
+    EXPECT_EQ(coronal.portal_ml, axial.portal_ml);
+    EXPECT_EQ(coronal.hepatic_ml, axial.hepatic_ml);
+}
+
 // No contrast: the vessels have the liver's CT number, so they cannot be seen; the pipeline must
 // report nothing rather than noise. Parenchyma noise after smoothing is about 4 HU, the seed level
 // 20 HU above the parenchyma (5 noise sigmas); the tumours are darker, not brighter.

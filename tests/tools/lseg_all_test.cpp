@@ -10,6 +10,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 using namespace lobe;
@@ -71,6 +73,49 @@ TEST(LsegAll, OneLabelVolumeWithVolumesGraphAndPictures)
     const double minimum[5] = {0, 0.98, 0.85, 0.85, 0.85};
     for (int l = 1; l <= 4; ++l)
         EXPECT_GE(dice_of(out, dir / "ph" / "labels.mhd", l, dir), minimum[l]) << "label " << l;
+}
+
+// The same phantom and liver stored as a coronal stack (rows along x, columns to the feet, slices
+// to the back): the tissue labels are the axial run's reordered, voxel for voxel (the vessels run
+// on the patient frame's grid), the same volumes are printed, and every picture is the axial
+// run's byte for byte (pictures of a stack that is not axial are drawn on its axial grid).
+TEST(LsegAll, ACoronalStackGivesTheSameLabelsAndPictures)
+{
+    const auto dir = test::scratch_dir();
+    auto r = test::run_tool(LPHANTOM_EXE, q(dir / "ph") + " --spacing 1.5,1.5,3 --seed 8 --quiet", dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    core::AxisOrder order;
+    order.from = {0, 2, 1};
+    order.flip = {false, true, false};
+    io::write_image(dir / "ct-coronal.mhd",
+                    core::reorder_axes(std::get<core::ImageI16>(io::read_image(dir / "ph" / "ct.mhd")), order));
+    io::write_image(dir / "labels-coronal.mhd",
+                    core::reorder_axes(std::get<core::LabelImage3D>(io::read_image(dir / "ph" / "labels.mhd")), order));
+    std::string printed[2];
+    for (int run = 0; run < 2; ++run) {
+        const std::string name = run == 0 ? "axial" : "coronal";
+        const fs::path ct = run == 0 ? dir / "ph" / "ct.mhd" : dir / "ct-coronal.mhd";
+        const fs::path labels = run == 0 ? dir / "ph" / "labels.mhd" : dir / "labels-coronal.mhd";
+        r = run_lseg("all " + q(ct) + " --liver " + q(labels) + " --liver-label 1,2,3,4 -o " + q(dir / (name + ".h5")) +
+                         " --png " + q(dir / name) + " --labels-out " + q(dir / (name + "-tissues.mhd")) + " --quiet",
+                     dir);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        printed[run] = r.out;
+    }
+    EXPECT_EQ(printed[1], printed[0]);
+    const auto axial = std::get<core::LabelImage3D>(io::read_image(dir / "axial-tissues.mhd"));
+    const auto coronal = std::get<core::LabelImage3D>(io::read_image(dir / "coronal-tissues.mhd"));
+    EXPECT_TRUE(core::reorder_axes(axial, order).data == coronal.data);
+    const auto bytes = [](const fs::path& f) {
+        std::ifstream in(f, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    int pictures = 0;
+    for (const auto& e : fs::directory_iterator(dir / "axial")) {
+        ++pictures;
+        EXPECT_TRUE(bytes(e.path()) == bytes(dir / "coronal" / e.path().filename())) << e.path().filename();
+    }
+    EXPECT_GE(pictures, 5);
 }
 
 // Without --liver the automatic liver pipeline runs first (a coarse phantom, as in

@@ -91,17 +91,27 @@ int run_all(AllOptions& o, const tools::Progress& progress, tools::RunRecord& re
             io::write_image(o.labels_out, tissues);
         if (!o.png_dir.empty()) {
             fs::create_directories(o.png_dir);
+            // The views follow the voxel axes: a stack that is not axial is pictured on its axial grid.
+            const core::AxisOrder order = core::patient_axis_order(volume);
+            core::ImageF turned;
+            core::LabelImage3D turned_tissues;
+            if (!order.flips_only()) {
+                turned = core::reorder_axes(volume, order);
+                turned_tissues = core::reorder_axes(tissues, order);
+            }
+            const core::ImageF& shown = order.flips_only() ? volume : turned;
+            const core::LabelImage3D& shown_tissues = order.flips_only() ? tissues : turned_tissues;
             tools::Overlay ov;
-            ov.labels = &tissues;
+            ov.labels = &shown_tissues;
             ov.fill_opacity = 0.3;
             // The axial slice with the most vessel and tumour voxels, and a coronal slice through
             // the liver's centre.
-            std::vector<std::size_t> per_slice(std::size_t(volume.size[2]), 0);
+            std::vector<std::size_t> per_slice(std::size_t(shown.size[2]), 0);
             double cj = 0, n = 0;
-            for (int k = 0; k < volume.size[2]; ++k)
-                for (int j = 0; j < volume.size[1]; ++j)
-                    for (int i = 0; i < volume.size[0]; ++i) {
-                        const auto v = tissues.at(i, j, k);
+            for (int k = 0; k < shown.size[2]; ++k)
+                for (int j = 0; j < shown.size[1]; ++j)
+                    for (int i = 0; i < shown.size[0]; ++i) {
+                        const auto v = shown_tissues.at(i, j, k);
                         per_slice[std::size_t(k)] += v >= 2;
                         if (v) {
                             cj += j;
@@ -118,7 +128,7 @@ int run_all(AllOptions& o, const tools::Progress& progress, tools::RunRecord& re
                 pp.caption = "lseg all: liver " + fixed(liver_ml, 0) + " mL, portal " + fixed(static_cast<double>(count[2]) * voxel_ml, 1) +
                              ", hepatic " + fixed(static_cast<double>(count[3]) * voxel_ml, 1) + ", tumour " +
                              fixed(static_cast<double>(count[4]) * voxel_ml, 1) + " mL";
-                tools::write_slice_png(o.png_dir / (std::string("all-") + tools::slice_axis_name(axis) + ".png"), volume, pp, {ov});
+                tools::write_slice_png(o.png_dir / (std::string("all-") + tools::slice_axis_name(axis) + ".png"), shown, pp, {ov});
             }
             if (vr.found)
                 write_vessel_pictures(o.png_dir, "vessels", volume, liver, vr);

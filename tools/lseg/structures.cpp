@@ -227,6 +227,14 @@ void add_tumour_provenance(io::Provenance& prov, const seg::TumourResult& r)
 void write_tumour_pictures(const fs::path& dir, const std::string& prefix, const core::ImageF& image,
                            const core::LabelImage3D& liver, const seg::TumourResult& r)
 {
+    // The views follow the voxel axes: a stack that is not axial is pictured on its axial grid.
+    const core::AxisOrder order = core::patient_axis_order(image);
+    if (!order.flips_only()) {
+        seg::TumourResult axial = r;
+        axial.mask = core::reorder_axes(r.mask, order);
+        write_tumour_pictures(dir, prefix, core::reorder_axes(image, order), core::reorder_axes(liver, order), axial);
+        return;
+    }
     fs::create_directories(dir);
     tools::Overlay ov;
     ov.labels = &r.mask;
@@ -250,6 +258,18 @@ void write_tumour_pictures(const fs::path& dir, const std::string& prefix, const
 void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const core::ImageF& image,
                            const core::LabelImage3D& liver, const seg::VesselResult& r)
 {
+    // The views follow the voxel axes: a stack that is not axial is pictured on its axial grid
+    // (the graph is in mm). Only what the pictures read is copied.
+    const core::AxisOrder order = core::patient_axis_order(image);
+    if (!order.flips_only()) {
+        seg::VesselResult axial;
+        axial.labels = core::reorder_axes(r.labels, order);
+        axial.graph = r.graph;
+        axial.portal_ml = r.portal_ml;
+        axial.hepatic_ml = r.hepatic_ml;
+        write_vessel_pictures(dir, prefix, core::reorder_axes(image, order), core::reorder_axes(liver, order), axial);
+        return;
+    }
     fs::create_directories(dir);
     const int nx = image.size[0], ny = image.size[1], nz = image.size[2];
     // Where the vessels are: the axial slice holding most of them, and their centroid.

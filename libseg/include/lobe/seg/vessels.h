@@ -139,7 +139,9 @@ struct VesselResult {
 using VesselProgress = std::function<void(const std::string&)>;
 
 //! Segments the hepatic vessels of `image` (CT in HU) inside `liver` (non-zero = liver, including
-//! its vessels, as the SLIVER07 reference and `segment_liver` give it). No clicks.
+//! its vessels, as the SLIVER07 reference and `segment_liver` give it). No clicks. Runs on the
+//! volume reordered onto the patient frame (core::patient_axis_order), so every storage of the
+//! same scan (reversed axes, a coronal stack) gives the same trees; the images are on `image`'s grid.
 //! \throw InvalidInputError on grids that differ, an empty liver, non-finite values in the liver's
 //! box, or invalid parameters.
 VesselResult segment_vessels(const core::ImageF& image, const core::LabelImage3D& liver, const VesselParams& params = {},
