@@ -13,6 +13,7 @@
 #include "lobe/seg/shape_memory.h"
 #include "lphantom/phantom.h"
 #include "common/masks.h"
+#include "common/orientation.h"
 
 #include <gtest/gtest.h>
 
@@ -193,9 +194,7 @@ TEST(LiverPipeline, RowsAndColumnsReversedGiveTheSameLiver)
 TEST(LiverPipeline, ACoronalStackGivesTheSameLiver)
 {
     const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
-    core::AxisOrder order;
-    order.from = {0, 2, 1};
-    order.flip = {false, true, false};
+    const core::AxisOrder order = test::coronal_storage();
     const core::ImageF coronal = core::reorder_axes(c.hu, order);
     ASSERT_LT(coronal.axis(1).z, -0.99);
     const seg::LiverResult axial = seg::segment_liver(c.hu);

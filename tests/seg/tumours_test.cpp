@@ -8,6 +8,7 @@
 
 #include "common/expect_error.h"
 #include "common/tubes.h"
+#include "common/orientation.h"
 #include "lobe/core/any_image.h"
 #include "lphantom/phantom.h"
 
@@ -124,9 +125,7 @@ TEST(Tumours, FindsTheLobularTheSatelliteAndTheBoundaryTumour)
 TEST(Tumours, ACoronalStackGivesTheSameTumours)
 {
     const Case c = make_case({1.2, 1.2, 2.0}, 21);
-    core::AxisOrder order;
-    order.from = {0, 2, 1};
-    order.flip = {false, true, false};
+    const core::AxisOrder order = test::coronal_storage();
     const auto axial = seg::segment_tumours(c.hu, c.liver, &c.vessels);
     const core::LabelImage3D vessels = core::reorder_axes(c.vessels, order);
     const auto coronal =

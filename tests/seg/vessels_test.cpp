@@ -8,6 +8,7 @@
 
 #include "common/expect_error.h"
 #include "common/tubes.h"
+#include "common/orientation.h"
 #include "lobe/core/any_image.h"
 #include "lphantom/phantom.h"
 
@@ -119,9 +120,7 @@ TEST(Vessels, PhantomTreesToTheFourthLevel)
 TEST(Vessels, ACoronalStackGivesTheSameTrees)
 {
     const Case c = make_case({1.2, 1.2, 2.0}, 21);
-    core::AxisOrder order;
-    order.from = {0, 2, 1};
-    order.flip = {false, true, false};
+    const core::AxisOrder order = test::coronal_storage();
     const auto axial = seg::segment_vessels(c.hu, c.liver);
     const auto coronal = seg::segment_vessels(core::reorder_axes(c.hu, order), core::reorder_axes(c.liver, order));
     ASSERT_TRUE(axial.found) << axial.message;

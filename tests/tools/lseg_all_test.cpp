@@ -6,12 +6,11 @@
 #include "common/run_tool.h"
 #include "tools/lseg_run.h"
 #include "common/test_data.h"
+#include "common/orientation.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <fstream>
-#include <iterator>
 #include <string>
 
 using namespace lobe;
@@ -84,9 +83,7 @@ TEST(LsegAll, ACoronalStackGivesTheSameLabelsAndPictures)
     const auto dir = test::scratch_dir();
     auto r = test::run_tool(LPHANTOM_EXE, q(dir / "ph") + " --spacing 1.5,1.5,3 --seed 8 --quiet", dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    core::AxisOrder order;
-    order.from = {0, 2, 1};
-    order.flip = {false, true, false};
+    const core::AxisOrder order = test::coronal_storage();
     io::write_image(dir / "ct-coronal.mhd",
                     core::reorder_axes(std::get<core::ImageI16>(io::read_image(dir / "ph" / "ct.mhd")), order));
     io::write_image(dir / "labels-coronal.mhd",
@@ -106,14 +103,11 @@ TEST(LsegAll, ACoronalStackGivesTheSameLabelsAndPictures)
     const auto axial = std::get<core::LabelImage3D>(io::read_image(dir / "axial-tissues.mhd"));
     const auto coronal = std::get<core::LabelImage3D>(io::read_image(dir / "coronal-tissues.mhd"));
     EXPECT_TRUE(core::reorder_axes(axial, order).data == coronal.data);
-    const auto bytes = [](const fs::path& f) {
-        std::ifstream in(f, std::ios::binary);
-        return std::string(std::istreambuf_iterator<char>(in), {});
-    };
     int pictures = 0;
     for (const auto& e : fs::directory_iterator(dir / "axial")) {
         ++pictures;
-        EXPECT_TRUE(bytes(e.path()) == bytes(dir / "coronal" / e.path().filename())) << e.path().filename();
+        const std::string axial_png = test::read_file(e.path());
+        EXPECT_TRUE(axial_png == test::read_file(dir / "coronal" / e.path().filename())) << e.path().filename();
     }
     EXPECT_GE(pictures, 5);
 }

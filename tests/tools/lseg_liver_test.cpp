@@ -5,12 +5,11 @@
 #include "common/run_tool.h"
 #include "tools/lseg_run.h"
 #include "common/test_data.h"
+#include "common/orientation.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <fstream>
-#include <iterator>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -147,9 +146,7 @@ TEST(LsegLiver, ACoronalStackGivesTheSameMaskAndPictures)
     const auto dir = test::scratch_dir();
     auto r = test::run_tool(LPHANTOM_EXE, q(dir / "ph") + " --spacing 2.1,2.1,5 --seed 4 --quiet", dir);
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    core::AxisOrder order;
-    order.from = {0, 2, 1};
-    order.flip = {false, true, false};
+    const core::AxisOrder order = test::coronal_storage();
     const auto axial_ct = std::get<core::ImageI16>(io::read_image(dir / "ph" / "ct.mhd"));
     io::write_image(dir / "coronal.mhd", core::reorder_axes(axial_ct, order));
     for (const char* name : {"axial", "coronal"}) {
@@ -165,15 +162,11 @@ TEST(LsegLiver, ACoronalStackGivesTheSameMaskAndPictures)
     ASSERT_EQ(coronal.size, expected.size);
     EXPECT_TRUE(coronal.data == expected.data);
     EXPECT_GT(std::count(axial.data.begin(), axial.data.end(), std::uint8_t{1}), 0);
-    const auto bytes = [](const fs::path& f) {
-        std::ifstream in(f, std::ios::binary);
-        return std::string(std::istreambuf_iterator<char>(in), {});
-    };
     for (const char* view : {"axial", "coronal", "sagittal"}) {
         const std::string png = std::string("liver-") + view + ".png";
-        const std::string a = bytes(dir / "axial" / png);
+        const std::string a = test::read_file(dir / "axial" / png);
         EXPECT_FALSE(a.empty()) << view;
-        EXPECT_TRUE(a == bytes(dir / "coronal" / png)) << view;
+        EXPECT_TRUE(a == test::read_file(dir / "coronal" / png)) << view;
     }
 }
 
