@@ -332,13 +332,23 @@ ShapeMemory train_shape_memory(const std::vector<const core::ImageF*>& images,
         const std::string what = "train_shape_memory: volume " + std::to_string(v + 1);
         if (!images[v] || !liver_masks[v])
             throw core::InvalidInputError(what + ": null image or mask");
-        const core::ImageF& img = *images[v];
-        const core::LabelImage3D& mask = *liver_masks[v];
-        core::validate_geometry(img, what + " image");
-        if (img.data.size() != img.voxel_count() || mask.data.size() != mask.voxel_count())
+        core::validate_geometry(*images[v], what + " image");
+        if (images[v]->data.size() != images[v]->voxel_count() || liver_masks[v]->data.size() != liver_masks[v]->voxel_count())
             throw core::InvalidInputError(what + ": data size does not match the grid");
-        if (!core::same_grid(img, mask))
+        if (!core::same_grid(*images[v], *liver_masks[v]))
             throw core::InvalidInputError(what + ": the liver mask is not on the image's grid");
+        // Transitions are measured between axial slices, as `segment_liver` propagates: a
+        // coronal or sagittal stack is read on its axial grid (flips alone change nothing that
+        // is measured: both directions are pooled and the moments are in-plane).
+        const core::AxisOrder order = core::patient_axis_order(*images[v]);
+        core::ImageF turned_img;
+        core::LabelImage3D turned_mask;
+        if (!order.flips_only()) {
+            turned_img = core::reorder_axes(*images[v], order);
+            turned_mask = core::reorder_axes(*liver_masks[v], order);
+        }
+        const core::ImageF& img = order.flips_only() ? *images[v] : turned_img;
+        const core::LabelImage3D& mask = order.flips_only() ? *liver_masks[v] : turned_mask;
 
         std::vector<SliceMoments> mom(static_cast<std::size_t>(mask.size[2]));
         std::size_t count = 0;

@@ -5,6 +5,7 @@
 
 #include "common/expect_error.h"
 #include "common/masks.h"
+#include "common/orientation.h"
 #include "common/timing.h"
 #include "lphantom/phantom.h"
 
@@ -178,6 +179,38 @@ TEST(ShapeMemory, TrainingCountsAndIntensity)
                 m.intensity.quantiles[4], m.intensity.voxels);
     std::printf("volume %.0f-%.0f mL extent %.0f-%.0f mm max area %.0f-%.0f\n", m.volume_ml_min, m.volume_ml_max,
                 m.extent_mm_min, m.extent_mm_max, m.max_area_mm2_min, m.max_area_mm2_max);
+}
+
+TEST(ShapeMemory, ACoronalStackTeachesTheSameMemory)
+{
+    // The training pairs stored as coronal stacks (a coronal series) hold the same axial slices;
+    // training reads them on the axial grid, so every learnt number is the same to the bit. Read
+    // along the stored third axis instead, the transitions would be coronal (the counts differ).
+    const Data& d = data();
+    const core::AxisOrder order = test::coronal_storage();
+    const core::ImageF hu_a = core::reorder_axes(d.hu_a, order), hu_b = core::reorder_axes(d.hu_b, order);
+    const core::LabelImage3D liver_a = core::reorder_axes(d.liver_a, order), liver_b = core::reorder_axes(d.liver_b, order);
+    const seg::ShapeMemory m = seg::train_shape_memory({&hu_a, &hu_b}, {&liver_a, &liver_b});
+    EXPECT_EQ(m.slices, d.memory.slices);
+    EXPECT_EQ(m.transitions, d.memory.transitions);
+    EXPECT_EQ(m.volume_ml_min, d.memory.volume_ml_min);
+    EXPECT_EQ(m.extent_mm_max, d.memory.extent_mm_max);
+    EXPECT_EQ(m.max_area_mm2_max, d.memory.max_area_mm2_max);
+    EXPECT_EQ(m.intensity.voxels, d.memory.intensity.voxels);
+    EXPECT_EQ(m.intensity.quantiles, d.memory.intensity.quantiles);
+    std::printf("coronal stacks: %zu liver slices, %zu transitions (axial copies %zu, %zu)\n", m.slices, m.transitions,
+                d.memory.slices, d.memory.transitions);
+    ASSERT_EQ(m.steps.size(), d.memory.steps.size());
+    for (std::size_t b = 0; b < m.steps.size(); ++b) {
+        const seg::ShapeStep &s = m.steps[b], &t = d.memory.steps[b];
+        EXPECT_EQ(s.transitions, t.transitions) << "bin " << b;
+        EXPECT_EQ(s.outward_per_mm, t.outward_per_mm) << "bin " << b;
+        EXPECT_EQ(s.envelope_per_mm, t.envelope_per_mm) << "bin " << b;
+        EXPECT_EQ(s.inward_per_mm, t.inward_per_mm) << "bin " << b;
+        EXPECT_EQ(s.growth_per_mm, t.growth_per_mm) << "bin " << b;
+        EXPECT_EQ(s.shrink_per_mm, t.shrink_per_mm) << "bin " << b;
+        EXPECT_EQ(s.centroid_per_mm, t.centroid_per_mm) << "bin " << b;
+    }
 }
 
 //! One step of a propagation over the check phantom: previous slice, next slice index, the

@@ -92,7 +92,9 @@ struct ShapeTrainParams {
 };
 
 //! Learns the shape memory from images and their 0/1 liver masks (non-zero = liver), pairwise
-//! on the same grid. Masks with one liver slice contribute no transitions.
+//! on the same grid. Masks with one liver slice contribute no transitions. Transitions are
+//! between axial slices whatever the stored orientation (a coronal stack is read on its axial
+//! grid, core::patient_axis_order).
 //! \throw InvalidInputError for no volumes, different list sizes, a null pointer, a mask not on
 //! its image's grid, an empty mask (naming its index), or no transition at all.
 ShapeMemory train_shape_memory(const std::vector<const core::ImageF*>& images,
