@@ -25,20 +25,37 @@ struct Plane {
     bool flip_col = false, flip_row = false;
 };
 
+// The patient axes (LPS: 0 = x, 1 = y, 2 = z) along the screen's columns and rows and across a view.
+struct ViewAxes {
+    int col, row, normal;
+};
+
+ViewAxes view_axes(SliceAxis axis)
+{
+    switch (axis) {
+    case SliceAxis::Coronal: return {0, 2, 1};
+    case SliceAxis::Sagittal: return {1, 2, 0};
+    case SliceAxis::Axial: break;
+    }
+    return {0, 1, 2};
+}
+
+// Each screen direction follows the voxel axis nearest its patient axis (core::patient_axis_order),
+// so a coronal or sagittal stack is drawn in the same views as an axial one. Screen x runs to the
+// patient's left (+x) in axial and coronal views and to posterior (+y) in sagittal ones; screen y
+// runs to posterior (+y) in axial views and to inferior (-z) otherwise. A voxel axis pointing the
+// other way is read backwards.
 Plane plane_of(const core::ImageGeometry& g, SliceAxis axis)
 {
+    const core::AxisOrder order = core::patient_axis_order(g);
+    const ViewAxes v = view_axes(axis);
+    const auto at = [](int a) { return static_cast<std::size_t>(a); };
     Plane p;
-    switch (axis) {
-    case SliceAxis::Axial: p = {0, 1, 2, false, false}; break;
-    case SliceAxis::Coronal: p = {0, 2, 1, false, false}; break;
-    case SliceAxis::Sagittal: p = {1, 2, 0, false, false}; break;
-    }
-    // Screen x runs to the patient's left (+x LPS) in axial and coronal views and to posterior
-    // (+y) in sagittal ones; screen y runs to posterior (+y) in axial views and to inferior (-z)
-    // otherwise. Flip an image axis whose direction points the other way.
-    const core::Vec3 col = g.axis(p.col_axis), row = g.axis(p.row_axis);
-    p.flip_col = axis == SliceAxis::Sagittal ? col.y < 0 : col.x < 0;
-    p.flip_row = axis == SliceAxis::Axial ? row.y < 0 : row.z > 0;
+    p.col_axis = order.from[at(v.col)];
+    p.row_axis = order.from[at(v.row)];
+    p.fixed_axis = order.from[at(v.normal)];
+    p.flip_col = order.flip[at(v.col)];
+    p.flip_row = axis == SliceAxis::Axial ? order.flip[1] : !order.flip[2];
     return p;
 }
 
@@ -91,6 +108,41 @@ std::string fixed1(double v)
 }
 
 } // namespace
+
+int slice_voxel_axis(const core::ImageGeometry& g, SliceAxis axis)
+{
+    return plane_of(g, axis).fixed_axis;
+}
+
+bool axis_runs_backwards(const core::ImageGeometry& g, int voxel_axis)
+{
+    return core::patient_axis_order(g).inverse().flip[static_cast<std::size_t>(voxel_axis)];
+}
+
+int patient_round(const core::ImageGeometry& g, int voxel_axis, double index)
+{
+    if (!axis_runs_backwards(g, voxel_axis))
+        return static_cast<int>(std::lround(index));
+    const double last = g.size[static_cast<std::size_t>(voxel_axis)] - 1;
+    return static_cast<int>(last - double(std::lround(last - index)));
+}
+
+int fullest_slice(const std::vector<std::size_t>& counts, bool backwards)
+{
+    if (counts.empty())
+        return 0;
+    if (!backwards)
+        return static_cast<int>(std::max_element(counts.begin(), counts.end()) - counts.begin());
+    return static_cast<int>(counts.rend() - std::max_element(counts.rbegin(), counts.rend())) - 1;
+}
+
+SliceAxis view_across(const core::ImageGeometry& g, int voxel_axis)
+{
+    for (SliceAxis a : {SliceAxis::Axial, SliceAxis::Coronal, SliceAxis::Sagittal})
+        if (slice_voxel_axis(g, a) == voxel_axis)
+            return a;
+    return SliceAxis::Axial; // not reached: the three views cut the three axes
+}
 
 const char* slice_axis_name(SliceAxis axis)
 {

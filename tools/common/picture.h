@@ -2,7 +2,8 @@
 //! \file
 //! \brief PNG pictures of image slices with an optional label overlay, for every lobe tool.
 //!
-//! A slice is cut along an image axis (axial = k, coronal = j, sagittal = i), windowed
+//! A slice is cut across the voxel axis nearest the view's normal (for an axial stack axial = k,
+//! coronal = j, sagittal = i; a coronal stack's axial view cuts its j), windowed
 //! (default W400/L40, soft tissue), resampled so that pixels are square in millimetres (CT
 //! slices are often 2.5 mm apart against 0.7 mm in-plane), and shown in the radiological
 //! convention for an LPS image: axial with the patient's right on the picture's left and anterior
@@ -29,6 +30,27 @@ enum class SliceAxis { Axial, Coronal, Sagittal };
 //! "axial", "coronal" or "sagittal".
 const char* slice_axis_name(SliceAxis axis);
 
+//! The voxel axis (0 = i, 1 = j, 2 = k) that a view of an image on `g` cuts across, along which
+//! PictureParams::index counts: the axis nearest the view's normal (core::patient_axis_order).
+int slice_voxel_axis(const core::ImageGeometry& g, SliceAxis axis);
+
+//! Whether voxel axis `voxel_axis` of `g` runs against the patient axis it is nearest (a stack
+//! stored feet first, a coronal series' columns to the feet).
+bool axis_runs_backwards(const core::ImageGeometry& g, int voxel_axis);
+
+//! A continuous voxel index along `voxel_axis` rounded to the nearest voxel, half-way cases
+//! towards the patient's +axis whichever way the voxel axis runs: the same voxel for every
+//! stored orientation, so pictures do not depend on it.
+int patient_round(const core::ImageGeometry& g, int voxel_axis, double index);
+
+//! The index of the largest of `counts` (per slice along a voxel axis), ties going to the first
+//! in the patient's order (the last stored when the axis runs backwards).
+int fullest_slice(const std::vector<std::size_t>& counts, bool backwards);
+
+//! The view that cuts across voxel axis `voxel_axis` of `g`: the plane of a stored slice (a 2-D
+//! result on slice k of a coronal stack is drawn in the coronal view).
+SliceAxis view_across(const core::ImageGeometry& g, int voxel_axis);
+
 //! The colour and legend name of one label value.
 struct LabelColour {
     int label = 0;
@@ -53,7 +75,7 @@ struct Overlay {
 //! What to draw.
 struct PictureParams {
     SliceAxis axis = SliceAxis::Axial;
-    int index = -1;            //!< slice index along the axis; -1 = the middle slice
+    int index = -1;            //!< voxel index along slice_voxel_axis(); -1 = the middle slice
     double window = 400;       //!< window width [image units, HU for CT]
     double level = 40;         //!< window centre
     double pixel_mm = 0;       //!< output pixel size [mm]; 0 = the finer in-plane spacing

@@ -91,36 +91,30 @@ int run_all(AllOptions& o, const tools::Progress& progress, tools::RunRecord& re
             io::write_image(o.labels_out, tissues);
         if (!o.png_dir.empty()) {
             fs::create_directories(o.png_dir);
-            // The views follow the voxel axes: a stack that is not axial is pictured on its axial grid.
-            const core::AxisOrder order = core::patient_axis_order(volume);
-            core::ImageF turned;
-            core::LabelImage3D turned_tissues;
-            if (!order.flips_only()) {
-                turned = core::reorder_axes(volume, order);
-                turned_tissues = core::reorder_axes(tissues, order);
-            }
-            const core::ImageF& shown = order.flips_only() ? volume : turned;
-            const core::LabelImage3D& shown_tissues = order.flips_only() ? tissues : turned_tissues;
             tools::Overlay ov;
-            ov.labels = &shown_tissues;
+            ov.labels = &tissues;
             ov.fill_opacity = 0.3;
             // The axial slice with the most vessel and tumour voxels, and a coronal slice through
-            // the liver's centre.
-            std::vector<std::size_t> per_slice(std::size_t(shown.size[2]), 0);
-            double cj = 0, n = 0;
-            for (int k = 0; k < shown.size[2]; ++k)
-                for (int j = 0; j < shown.size[1]; ++j)
-                    for (int i = 0; i < shown.size[0]; ++i) {
-                        const auto v = shown_tissues.at(i, j, k);
-                        per_slice[std::size_t(k)] += v >= 2;
+            // the liver's centre; the views follow the patient's axes whatever the stored
+            // orientation (voxel axes `ax` and `co`).
+            const int ax = tools::slice_voxel_axis(volume, tools::SliceAxis::Axial);
+            const int co = tools::slice_voxel_axis(volume, tools::SliceAxis::Coronal);
+            std::vector<std::size_t> per_slice(std::size_t(volume.size[static_cast<std::size_t>(ax)]), 0);
+            double c_co = 0, n = 0;
+            for (int k = 0; k < volume.size[2]; ++k)
+                for (int j = 0; j < volume.size[1]; ++j)
+                    for (int i = 0; i < volume.size[0]; ++i) {
+                        const auto v = tissues.at(i, j, k);
+                        const int ijk[3] = {i, j, k};
+                        per_slice[std::size_t(ijk[ax])] += v >= 2;
                         if (v) {
-                            cj += j;
+                            c_co += ijk[co];
                             n += 1;
                         }
                     }
-            const int k = static_cast<int>(std::max_element(per_slice.begin(), per_slice.end()) - per_slice.begin());
             const std::pair<tools::SliceAxis, int> views[] = {
-                {tools::SliceAxis::Axial, k}, {tools::SliceAxis::Coronal, n > 0 ? static_cast<int>(cj / n) : -1}};
+                {tools::SliceAxis::Axial, tools::fullest_slice(per_slice, tools::axis_runs_backwards(volume, ax))},
+                {tools::SliceAxis::Coronal, n > 0 ? tools::patient_round(volume, co, c_co / n) : -1}};
             for (const auto& [axis, index] : views) {
                 tools::PictureParams pp;
                 pp.axis = axis;
@@ -128,7 +122,7 @@ int run_all(AllOptions& o, const tools::Progress& progress, tools::RunRecord& re
                 pp.caption = "lseg all: liver " + fixed(liver_ml, 0) + " mL, portal " + fixed(static_cast<double>(count[2]) * voxel_ml, 1) +
                              ", hepatic " + fixed(static_cast<double>(count[3]) * voxel_ml, 1) + ", tumour " +
                              fixed(static_cast<double>(count[4]) * voxel_ml, 1) + " mL";
-                tools::write_slice_png(o.png_dir / (std::string("all-") + tools::slice_axis_name(axis) + ".png"), shown, pp, {ov});
+                tools::write_slice_png(o.png_dir / (std::string("all-") + tools::slice_axis_name(axis) + ".png"), volume, pp, {ov});
             }
             if (vr.found)
                 write_vessel_pictures(o.png_dir, "vessels", volume, liver, vr);

@@ -43,21 +43,12 @@ std::string fixed(double v, int digits)
     return s.str();
 }
 
-//! Axial, coronal and sagittal pictures through the liver's centroid.
-//! The pictures' views follow the voxel axes (turning an axis round where it points the other
-//! way), so a stack that is not axial (a coronal series) is pictured on its axial grid.
-void write_pictures(const fs::path& dir, const core::ImageF& stored, const seg::LiverResult& r)
+//! Axial, coronal and sagittal pictures through the liver's centroid. The views follow the
+//! patient's axes whatever the stored orientation (a coronal series is drawn as an axial one).
+void write_pictures(const fs::path& dir, const core::ImageF& image, const seg::LiverResult& r)
 {
     fs::create_directories(dir);
-    const core::AxisOrder order = core::patient_axis_order(stored);
-    core::ImageF turned;
-    core::LabelImage3D turned_mask;
-    if (!order.flips_only()) {
-        turned = core::reorder_axes(stored, order);
-        turned_mask = core::reorder_axes(r.mask, order);
-    }
-    const core::ImageF& image = order.flips_only() ? stored : turned;
-    const core::LabelImage3D& mask = order.flips_only() ? r.mask : turned_mask;
+    const core::LabelImage3D& mask = r.mask;
     double ci = 0, cj = 0, ck = 0, n = 0;
     for (int k = 0; k < mask.size[2]; ++k)
         for (int j = 0; j < mask.size[1]; ++j)
@@ -68,14 +59,19 @@ void write_pictures(const fs::path& dir, const core::ImageF& stored, const seg::
                     ck += k;
                     n += 1;
                 }
-    const int centre[3] = {static_cast<int>(ci / n), static_cast<int>(cj / n), static_cast<int>(ck / n)};
+    // Rounded the patient's way: the same slice whichever way an axis runs.
+    const int centre[3] = {tools::patient_round(image, 0, ci / n), tools::patient_round(image, 1, cj / n),
+                           tools::patient_round(image, 2, ck / n)};
+    const auto through_centre = [&](tools::SliceAxis axis) {
+        return std::pair{axis, centre[tools::slice_voxel_axis(image, axis)]};
+    };
     tools::Overlay ov;
     ov.labels = &mask;
     ov.fill_opacity = 0.25;
     ov.colours = {{1, {255, 200, 0}, "liver"}};
-    const std::pair<tools::SliceAxis, int> views[] = {{tools::SliceAxis::Axial, centre[2]},
-                                                      {tools::SliceAxis::Coronal, centre[1]},
-                                                      {tools::SliceAxis::Sagittal, centre[0]}};
+    const std::pair<tools::SliceAxis, int> views[] = {through_centre(tools::SliceAxis::Axial),
+                                                      through_centre(tools::SliceAxis::Coronal),
+                                                      through_centre(tools::SliceAxis::Sagittal)};
     // An MR has no HU: its window spans the 1st to the 99th percentile of a strided sample.
     double window = tools::PictureParams{}.window, level = tools::PictureParams{}.level;
     if (r.modality == seg::Modality::Mr) {

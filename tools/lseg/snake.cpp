@@ -157,6 +157,8 @@ int run_snake(SnakeOptions& o, const tools::Progress& progress, tools::RunRecord
             ov.colours = {{1, {255, 200, 0}, "snake"}};
             if (o.volume) // the middle slice of the volume
                 pp.index = image.size[2] / 2;
+            // The plane of the stored slices (coronal for a slice of a coronal series).
+            pp.axis = tools::view_across(image, 2);
             tools::write_slice_png(o.png, image, pp, {ov});
         }
     });

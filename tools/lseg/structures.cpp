@@ -227,14 +227,6 @@ void add_tumour_provenance(io::Provenance& prov, const seg::TumourResult& r)
 void write_tumour_pictures(const fs::path& dir, const std::string& prefix, const core::ImageF& image,
                            const core::LabelImage3D& liver, const seg::TumourResult& r)
 {
-    // The views follow the voxel axes: a stack that is not axial is pictured on its axial grid.
-    const core::AxisOrder order = core::patient_axis_order(image);
-    if (!order.flips_only()) {
-        seg::TumourResult axial = r;
-        axial.mask = core::reorder_axes(r.mask, order);
-        write_tumour_pictures(dir, prefix, core::reorder_axes(image, order), core::reorder_axes(liver, order), axial);
-        return;
-    }
     fs::create_directories(dir);
     tools::Overlay ov;
     ov.labels = &r.mask;
@@ -245,10 +237,11 @@ void write_tumour_pictures(const fs::path& dir, const std::string& prefix, const
     lov.labels = &liver;
     lov.fill_opacity = 0.0;
     lov.colours = {{1, {214, 128, 52}, "liver"}};
+    const int a = tools::slice_voxel_axis(image, tools::SliceAxis::Axial); // the stack's axis for z
     for (std::size_t t = 0; t < r.tumours.size() && t < 3; ++t) {
         const core::Vec3 c = image.physical_to_index(r.tumours[t].centroid);
         tools::PictureParams pp;
-        pp.index = std::clamp(static_cast<int>(std::lround(c.z)), 0, image.size[2] - 1);
+        pp.index = std::clamp(tools::patient_round(image, a, c[a]), 0, image.size[static_cast<std::size_t>(a)] - 1);
         pp.caption = "lseg tumours: " + fixed(r.tumours[t].volume_ml, 2) + " mL, " + fixed(r.tumours[t].contrast, 0) +
                      " HU against the parenchyma" + (r.tumours[t].touches_surface ? ", at the surface" : "");
         tools::write_slice_png(dir / (prefix + "-" + std::to_string(t + 1) + ".png"), image, pp, {lov, ov});
@@ -258,33 +251,27 @@ void write_tumour_pictures(const fs::path& dir, const std::string& prefix, const
 void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const core::ImageF& image,
                            const core::LabelImage3D& liver, const seg::VesselResult& r)
 {
-    // The views follow the voxel axes: a stack that is not axial is pictured on its axial grid
-    // (the graph is in mm). Only what the pictures read is copied.
-    const core::AxisOrder order = core::patient_axis_order(image);
-    if (!order.flips_only()) {
-        seg::VesselResult axial;
-        axial.labels = core::reorder_axes(r.labels, order);
-        axial.graph = r.graph;
-        axial.portal_ml = r.portal_ml;
-        axial.hepatic_ml = r.hepatic_ml;
-        write_vessel_pictures(dir, prefix, core::reorder_axes(image, order), core::reorder_axes(liver, order), axial);
-        return;
-    }
     fs::create_directories(dir);
-    const int nx = image.size[0], ny = image.size[1], nz = image.size[2];
+    // The views follow the patient's axes whatever the stored orientation: the axial view cuts
+    // voxel axis `ax`, the coronal view (and the projection) voxel axis `co`; `rest` is the third.
+    const int ax = tools::slice_voxel_axis(image, tools::SliceAxis::Axial);
+    const int co = tools::slice_voxel_axis(image, tools::SliceAxis::Coronal);
+    const int rest = 3 - ax - co;
+    const auto n_of = [&image](int a) { return image.size[static_cast<std::size_t>(a)]; };
     // Where the vessels are: the axial slice holding most of them, and their centroid.
-    std::vector<std::size_t> per_slice(std::size_t(nz), 0);
-    double cj = 0, n = 0;
-    for (int k = 0; k < nz; ++k)
-        for (int j = 0; j < ny; ++j)
-            for (int i = 0; i < nx; ++i)
+    std::vector<std::size_t> per_slice(std::size_t(n_of(ax)), 0);
+    double c_co = 0, n = 0;
+    for (int k = 0; k < image.size[2]; ++k)
+        for (int j = 0; j < image.size[1]; ++j)
+            for (int i = 0; i < image.size[0]; ++i)
                 if (r.labels.at(i, j, k)) {
-                    ++per_slice[std::size_t(k)];
-                    cj += j;
+                    const int ijk[3] = {i, j, k};
+                    ++per_slice[std::size_t(ijk[ax])];
+                    c_co += ijk[co];
                     n += 1;
                 }
-    const int best_k = static_cast<int>(std::max_element(per_slice.begin(), per_slice.end()) - per_slice.begin());
-    const int mid_j = n > 0 ? static_cast<int>(cj / n) : ny / 2;
+    const int best_slice = tools::fullest_slice(per_slice, tools::axis_runs_backwards(image, ax));
+    const int mid = n > 0 ? tools::patient_round(image, co, c_co / n) : n_of(co) / 2;
     tools::Overlay ov;
     ov.labels = &r.labels;
     ov.fill_opacity = 0.55;
@@ -294,7 +281,7 @@ void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const
     lov.fill_opacity = 0.0;
     lov.colours = {{1, {214, 128, 52}, "liver"}};
     const std::string caption = "lseg vessels: portal " + fixed(r.portal_ml, 1) + " mL, hepatic " + fixed(r.hepatic_ml, 1) + " mL";
-    const std::pair<tools::SliceAxis, int> views[] = {{tools::SliceAxis::Axial, best_k}, {tools::SliceAxis::Coronal, mid_j}};
+    const std::pair<tools::SliceAxis, int> views[] = {{tools::SliceAxis::Axial, best_slice}, {tools::SliceAxis::Coronal, mid}};
     for (const auto& [axis, index] : views) {
         tools::PictureParams pp;
         pp.axis = axis;
@@ -303,27 +290,36 @@ void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const
         tools::write_slice_png(dir / (prefix + "-" + tools::slice_axis_name(axis) + ".png"), image, pp, {lov, ov});
     }
 
-    // The tree: a coronal maximum-intensity projection of the liver with the centre lines drawn
-    // in the colour of their branch level.
+    // The tree: a coronal maximum-intensity projection of the liver (along voxel axis `co`) with
+    // the centre lines drawn in the colour of their branch level.
     core::ImageGeometry g = image.geometry();
-    g.size[1] = 1;
+    g.size[static_cast<std::size_t>(co)] = 1;
     core::ImageF mip(g, -1000.f);
     core::LabelImage3D lines(g, 0);
-    for (int k = 0; k < nz; ++k)
-        for (int j = 0; j < ny; ++j)
-            for (int i = 0; i < nx; ++i)
-                if (liver.at(i, j, k))
-                    mip.at(i, 0, k) = std::max(mip.at(i, 0, k), image.at(i, j, k));
+    const auto flat = [co](int i, int j, int k) {
+        std::array<int, 3> q{i, j, k};
+        q[static_cast<std::size_t>(co)] = 0;
+        return q;
+    };
+    for (int k = 0; k < image.size[2]; ++k)
+        for (int j = 0; j < image.size[1]; ++j)
+            for (int i = 0; i < image.size[0]; ++i)
+                if (liver.at(i, j, k)) {
+                    const auto q = flat(i, j, k);
+                    mip.at(q[0], q[1], q[2]) = std::max(mip.at(q[0], q[1], q[2]), image.at(i, j, k));
+                }
     for (const auto& e : r.graph.edges)
         for (std::size_t p = 0; p + 1 < e.points.size(); ++p) {
             const core::Vec3 a = image.physical_to_index(e.points[p]), b = image.physical_to_index(e.points[p + 1]);
-            const int steps = 1 + static_cast<int>(std::ceil(std::max(std::abs(b.x - a.x), std::abs(b.z - a.z))));
+            const int steps = 1 + static_cast<int>(std::ceil(std::max(std::abs(b[ax] - a[ax]), std::abs(b[rest] - a[rest]))));
             for (int s = 0; s <= steps; ++s) {
                 const double t = double(s) / steps;
-                const int i = static_cast<int>(std::lround(a.x + (b.x - a.x) * t));
-                const int k = static_cast<int>(std::lround(a.z + (b.z - a.z) * t));
-                if (i >= 0 && i < nx && k >= 0 && k < nz)
-                    lines.at(i, 0, k) = static_cast<std::uint8_t>(std::clamp(static_cast<int>(e.level), 1, 5));
+                std::array<int, 3> q{0, 0, 0};
+                for (int d : {ax, rest})
+                    q[static_cast<std::size_t>(d)] = tools::patient_round(image, d, a[d] + (b[d] - a[d]) * t);
+                if (q[static_cast<std::size_t>(ax)] >= 0 && q[static_cast<std::size_t>(ax)] < n_of(ax) &&
+                    q[static_cast<std::size_t>(rest)] >= 0 && q[static_cast<std::size_t>(rest)] < n_of(rest))
+                    lines.at(q[0], q[1], q[2]) = static_cast<std::uint8_t>(std::clamp(static_cast<int>(e.level), 1, 5));
             }
         }
     tools::Overlay tov;
@@ -345,14 +341,19 @@ void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const
     pp.max_side_px = 1200;
     // Crop to the liver, 5 mm around it.
     core::Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-    for (int k = 0; k < nz; ++k)
-        for (int i = 0; i < nx; ++i)
-            if (mip.at(i, 0, k) > -1000.f)
-                for (const core::Vec3& q : {image.index_to_physical(i, 0, k), image.index_to_physical(i, ny - 1, k)})
-                    for (int a = 0; a < 3; ++a) {
-                        lo[a] = std::min(lo[a], q[a] - 5);
-                        hi[a] = std::max(hi[a], q[a] + 5);
+    for (int k = 0; k < mip.size[2]; ++k)
+        for (int j = 0; j < mip.size[1]; ++j)
+            for (int i = 0; i < mip.size[0]; ++i) {
+                if (!(mip.at(i, j, k) > -1000.f))
+                    continue;
+                std::array<int, 3> far{i, j, k};
+                far[static_cast<std::size_t>(co)] = n_of(co) - 1;
+                for (const core::Vec3& q : {image.index_to_physical(i, j, k), image.index_to_physical(far[0], far[1], far[2])})
+                    for (int d = 0; d < 3; ++d) {
+                        lo[d] = std::min(lo[d], q[d] - 5);
+                        hi[d] = std::max(hi[d], q[d] + 5);
                     }
+            }
     if (lo.x < hi.x) {
         pp.roi_lo = lo;
         pp.roi_hi = hi;
