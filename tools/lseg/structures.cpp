@@ -8,6 +8,7 @@
 #include "lobe/seg/liver.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <iomanip>
 #include <map>
