@@ -2,6 +2,7 @@
 #include "lobe/io/hdf5.h"
 #include "lobe/io/metaimage.h"
 
+#include "common/orientation.h"
 #include "common/run_tool.h"
 #include "common/test_data.h"
 
@@ -69,6 +70,36 @@ TEST(Lio, InfoPrintsGeometryTypeAndRange)
     EXPECT_EQ(j["origin"][2].get<double>(), -30.0);
     EXPECT_EQ(j["pixel_type"], "int16");
     EXPECT_EQ(j["max"].get<double>(), 18.0);
+}
+
+// Where each axis runs, by its nearest patient direction: the same small volume stored as DICOM
+// stacks it (LPS), as NIfTI does (x and y reversed: RAS), and as a coronal series (LIP).
+TEST(Lio, InfoNamesWhereTheAxesRun)
+{
+    const auto dir = test::scratch_dir();
+    const auto img = io::read_metaimage(small_image(dir));
+    const auto axial = std::get<core::Image3D<std::int16_t>>(img);
+    core::AxisOrder ras;
+    ras.flip = {true, true, false};
+    const struct {
+        const char* name;
+        core::AxisOrder order;
+        const char* code;
+        const char* slices;
+    } cases[] = {{"lps", core::AxisOrder{}, "LPS", "axial"}, {"ras", ras, "RAS", "axial"},
+                 {"coronal", test::coronal_storage(), "LIP", "coronal"}};
+    for (const auto& c : cases) {
+        const fs::path path = dir / (std::string(c.name) + ".mha");
+        io::write_metaimage(path, core::reorder_axes(axial, c.order));
+        auto r = lio("info " + test::shell_quote(path.string()), dir);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_NE(r.out.find(std::string("axes to:   ") + c.code + ", " + c.slices + " slices"), std::string::npos) << r.out;
+        r = lio("info --json " + test::shell_quote(path.string()), dir);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        const auto j = nlohmann::json::parse(r.out);
+        EXPECT_EQ(j["orientation"], c.code);
+        EXPECT_EQ(j["slices"], c.slices);
+    }
 }
 
 TEST(Lio, InfoOnTheDicomSeries)

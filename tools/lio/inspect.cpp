@@ -1,5 +1,6 @@
 #include "lio/inspect.h"
 
+#include "lobe/core/image3d.h"
 #include "lobe/io/dicom.h"
 #include "lobe/io/hdf5.h"
 
@@ -37,6 +38,25 @@ std::string joined(const A& values, const char* sep)
 }
 
 std::string uid_text(const std::string& uid) { return uid.empty() ? "(no SeriesInstanceUID)" : uid; }
+
+// Where each voxel axis runs, by the patient direction it is nearest (core::patient_axis_order):
+// "LPS" for a DICOM-style axial stack, "RAS" for NIfTI's, "LIP" for a coronal series stored head
+// first, and which plane the stored slices (the third axis) lie in.
+struct Orientation {
+    std::string code;
+    std::string slices;
+};
+
+Orientation orientation(const core::ImageGeometry& g)
+{
+    const core::AxisOrder to_voxel = core::patient_axis_order(g).inverse(); // voxel axis -> patient axis
+    Orientation o;
+    for (std::size_t a = 0; a < 3; ++a)
+        o.code += (to_voxel.flip[a] ? "RAI" : "LPS")[to_voxel.from[a]];
+    static const char* kPlane[3] = {"sagittal", "coronal", "axial"}; // slices across x, y, z
+    o.slices = kPlane[to_voxel.from[2]];
+    return o;
+}
 
 } // namespace
 
@@ -148,6 +168,9 @@ int info(const std::filesystem::path& path, const Selection& selection, bool jso
         j["spacing"] = g.spacing;
         j["origin"] = g.origin;
         j["direction"] = g.direction;
+        const Orientation o = orientation(g);
+        j["orientation"] = o.code;
+        j["slices"] = o.slices;
         j["min"] = lo;
         j["max"] = hi;
         std::cout << j.dump(2) << "\n";
@@ -165,6 +188,7 @@ int info(const std::filesystem::path& path, const Selection& selection, bool jso
               << "direction: " << joined(std::array<double, 3>{g.direction[0], g.direction[3], g.direction[6]}, " ")
               << " | " << joined(std::array<double, 3>{g.direction[1], g.direction[4], g.direction[7]}, " ") << " | "
               << joined(std::array<double, 3>{g.direction[2], g.direction[5], g.direction[8]}, " ") << " (axes)\n"
+              << "axes to:   " << orientation(g).code << ", " << orientation(g).slices << " slices\n"
               << "extent:    " << joined(extent, " x ") << " mm\n"
               << "range:     " << lo << " .. " << hi << "\n";
     return tools::kExitOk;
