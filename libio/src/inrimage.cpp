@@ -4,11 +4,14 @@
 #include "lobe/core/errors.h"
 #include "lobe/io/limits.h"
 
+#include "detail/checks.h"
+
 #include <zlib.h>
 
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -22,8 +25,33 @@ struct GzCloser {
     void operator()(gzFile_s* f) const { gzclose(f); }
 };
 
-template <class T> core::AnyImage read_voxels(gzFile f, const core::ImageGeometry& g, bool swap, const std::string& name)
+// The file must be able to hold what the header promises before anything is allocated: a plain
+// file its bytes after the header, a gzipped one no more than deflate can expand to (a 400-byte
+// file claiming 10^9 voxels would otherwise cost gigabytes; found by fuzz/inrimage_fuzzer).
+void check_data_size(gzFile f, const std::filesystem::path& path, std::size_t header_bytes, std::size_t data_bytes)
 {
+    std::error_code ec;
+    const std::uintmax_t file = std::filesystem::file_size(path, ec);
+    if (ec)
+        return; // not a regular file (a pipe): the reads below find a truncation
+    const std::string what = "the header promises " + std::to_string(data_bytes) + " bytes of voxels";
+    if (gzdirect(f)) {
+        const std::uintmax_t have = file > header_bytes ? file - header_bytes : 0;
+        if (have < data_bytes)
+            throw core::InvalidInputError(path.string() + ": truncated INRIMAGE data: " + what + " but the file holds " +
+                                          std::to_string(have) + " after its header");
+    } else if (static_cast<double>(data_bytes + header_bytes) > static_cast<double>(file) * detail::kMaxDeflateRatio) {
+        throw core::InvalidInputError(path.string() + ": truncated or corrupt INRIMAGE: " + what + " but a gzip stream of " +
+                                      std::to_string(file) + " bytes cannot expand to that many");
+    }
+}
+
+template <class T>
+core::AnyImage read_voxels(gzFile f, const core::ImageGeometry& g, bool swap, const std::filesystem::path& path,
+                           std::size_t header_bytes)
+{
+    const std::string name = path.string();
+    check_data_size(f, path, header_bytes, g.voxel_count() * sizeof(T));
     core::Image3D<T> img(g, T{});
     const std::size_t bytes = img.data.size() * sizeof(T);
     // gzread takes an unsigned count: read in chunks below 1 GiB.
@@ -108,23 +136,23 @@ core::AnyImage read_inrimage(const std::filesystem::path& path)
     gzFile in = f.get();
     if (type == "unsigned fixed") {
         if (bits == 8)
-            return read_voxels<std::uint8_t>(in, g, swap, name);
+            return read_voxels<std::uint8_t>(in, g, swap, path, header.size());
         if (bits == 16)
-            return read_voxels<std::uint16_t>(in, g, swap, name);
+            return read_voxels<std::uint16_t>(in, g, swap, path, header.size());
         if (bits == 32)
-            return read_voxels<std::uint32_t>(in, g, swap, name);
+            return read_voxels<std::uint32_t>(in, g, swap, path, header.size());
     } else if (type == "signed fixed") {
         if (bits == 8)
-            return read_voxels<std::int8_t>(in, g, swap, name);
+            return read_voxels<std::int8_t>(in, g, swap, path, header.size());
         if (bits == 16)
-            return read_voxels<std::int16_t>(in, g, swap, name);
+            return read_voxels<std::int16_t>(in, g, swap, path, header.size());
         if (bits == 32)
-            return read_voxels<std::int32_t>(in, g, swap, name);
+            return read_voxels<std::int32_t>(in, g, swap, path, header.size());
     } else if (type == "float") {
         if (bits == 32)
-            return read_voxels<float>(in, g, swap, name);
+            return read_voxels<float>(in, g, swap, path, header.size());
         if (bits == 64)
-            return read_voxels<double>(in, g, swap, name);
+            return read_voxels<double>(in, g, swap, path, header.size());
     }
     throw core::InvalidInputError(name + ": unsupported INRIMAGE pixel type TYPE=" + type +
                                   " PIXSIZE=" + std::to_string(bits) + " bits");

@@ -6,8 +6,10 @@
 #include "common/test_data.h"
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <algorithm>
+#include <chrono>
 #include <fstream>
 
 using namespace lobe;
@@ -121,6 +123,28 @@ TEST(Inrimage, RefusesBadFilesNamingThem)
     refused("type.inr", "XDIM=2\nYDIM=2\nZDIM=1\nTYPE=packed\nPIXSIZE=8 bits\n", "abcd", "unsupported INRIMAGE pixel type");
     refused("nodim.inr", "YDIM=2\nZDIM=1\nTYPE=unsigned fixed\nPIXSIZE=8 bits\n", "abcd", "XDIM");
     refused("cpu.inr", ok + "CPU=vax\n", "abcd", "byte order");
+    // A few hundred bytes promising 2 x 10^9 voxels (the limit allows it): refused from the file's
+    // size before anything is allocated, plain or gzipped (each took over 10 s and gigabytes
+    // under the fuzzer before; here the test's time bound is the check).
+    const std::string huge = "XDIM=2000\nYDIM=1000\nZDIM=1000\nTYPE=unsigned fixed\nPIXSIZE=8 bits\n";
+    const auto t0 = std::chrono::steady_clock::now();
+    refused("huge.inr", huge, "abcd", "the header promises 2000000000 bytes of voxels but the file holds 4");
+    {
+        std::string header = "#INRIMAGE-4#{\n" + huge + "##}\n";
+        header.insert(header.size() - 4, std::string(256 - header.size(), '\n'));
+        gzFile gz = gzopen((dir / "huge.inr.gz").string().c_str(), "wb");
+        ASSERT_NE(gz, nullptr);
+        gzwrite(gz, header.data(), static_cast<unsigned>(header.size()));
+        gzwrite(gz, "abcd", 4);
+        gzclose(gz);
+        try {
+            io::read_image(dir / "huge.inr.gz");
+            ADD_FAILURE() << "huge.inr.gz was read";
+        } catch (const core::InvalidInputError& e) {
+            EXPECT_NE(std::string(e.what()).find("cannot expand to that many"), std::string::npos) << e.what();
+        }
+    }
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 1.0);
     std::ofstream(dir / "not.inr") << std::string(300, 'x');
     EXPECT_THROW(io::read_image(dir / "not.inr"), core::InvalidInputError);
     EXPECT_THROW(io::write_image(dir / "out.inr", core::LabelImage3D({}, 0)), core::InvalidInputError);
