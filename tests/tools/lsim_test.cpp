@@ -124,6 +124,14 @@ TEST(Lsim, SceneErrorsNameTheLine)
     write_text(scene, "[time]\nduration = -1\n");
     EXPECT_NE(lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5"), dir).err.find("bad.scene:2:"),
               std::string::npos);
+    // More frames than an output file should hold (and than lsim counts in an int): 10^32.
+    write_text(scene, "[time]\nduration = 1e30\nframe_interval = 1e-2\n");
+    const auto frames = lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5"), dir);
+    EXPECT_EQ(frames.exit_code, 2);
+    EXPECT_NE(frames.err.find("bad.scene: [time] duration / frame_interval asks for 1e+32 frames, more than 100000"),
+              std::string::npos)
+        << frames.err;
+    EXPECT_FALSE(fs::exists(dir / "sim.h5"));
     // A probe that starts inside the 40 mm block (centre 5 mm below its top face, radius 10)
     write_text(scene, "[time]\nduration = 0.1\n[probe]\nradius = 10\npoint = 0 20 20 35\n");
     const auto inside = lsim(q(dir / "block.h5") + " " + q(scene) + " -o " + q(dir / "sim.h5"), dir);

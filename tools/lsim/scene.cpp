@@ -24,6 +24,16 @@ std::string trim(const std::string& s)
 // Tissue names of the tet labels (docs/file-format.md).
 const std::map<std::string, std::int32_t> kTissues = {{"liver", 1}, {"portal_vein", 2}, {"hepatic_veins", 3}, {"tumour", 4}};
 
+// Frames an lsim run may write (100 000 frames of a 10 000-node mesh are 24 GB of positions).
+constexpr int kMaxFrames = 100000;
+
+std::string number_text(double v)
+{
+    std::ostringstream o;
+    o << v;
+    return o.str();
+}
+
 class Parser {
 public:
     explicit Parser(std::string file) : file_(std::move(file)) {}
@@ -306,6 +316,12 @@ public:
         }
         if (s.simulator.time_step.policy == mss::StepPolicy::Fixed && !(s.simulator.time_step.dt > 0))
             throw core::InvalidInputError(file_ + ": [time] policy = fixed needs dt");
+        // Every frame is a copy of the nodes in the output file, and lsim counts frames in an int.
+        const double frames = std::ceil(s.duration / s.frame_interval - 1e-9);
+        if (!(frames <= kMaxFrames))
+            throw core::InvalidInputError(file_ + ": [time] duration / frame_interval asks for " + number_text(frames) +
+                                          " frames, more than " + std::to_string(kMaxFrames) +
+                                          " (lengthen frame_interval)");
         return s;
     }
 
