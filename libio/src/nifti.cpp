@@ -520,7 +520,7 @@ core::AnyImage read_nifti(const std::filesystem::path& path, const NiftiReadPara
         if (hdr.volumes > 1)
             throw InvalidInputError(name + ": is a series of " + std::to_string(hdr.volumes) +
                                     " volumes (dim[4]); lobe reads one volume at a time: choose one "
-                                    "with NiftiReadParams::volume");
+                                    "(NiftiReadParams::volume; `lio convert IN OUT --volume K` extracts it)");
         volume = 0;
     } else if (volume >= hdr.volumes) {
         throw InvalidInputError(name + ": volume " + std::to_string(volume) + " requested but the file holds " +

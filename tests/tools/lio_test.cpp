@@ -2,6 +2,8 @@
 #include "lobe/io/hdf5.h"
 #include "lobe/io/metaimage.h"
 
+#include <nifti1_io.h>
+
 #include "common/orientation.h"
 #include "common/run_tool.h"
 #include "common/test_data.h"
@@ -100,6 +102,50 @@ TEST(Lio, InfoNamesWhereTheAxesRun)
         EXPECT_EQ(j["orientation"], c.code);
         EXPECT_EQ(j["slices"], c.slices);
     }
+}
+
+// A 4-D NIfTI series: info says what it holds and how to choose, --volume reads one volume,
+// and asking for one that is not there, or a volume of a file that is no series, is an error.
+TEST(Lio, ChoosesAVolumeOfANiftiSeries)
+{
+    const auto dir = test::scratch_dir();
+    const fs::path p = dir / "series.nii.gz";
+    const int dims[8] = {4, 4, 3, 2, 3, 1, 1, 1}; // 4 x 3 x 2 voxels, 3 volumes
+    nifti_set_debug_level(0);
+    nifti_image* nim = nifti_make_new_nim(dims, DT_INT16, 1);
+    ASSERT_NE(nim, nullptr);
+    auto* v = static_cast<std::int16_t*>(nim->data);
+    for (std::size_t i = 0; i < nim->nvox; ++i)
+        v[i] = static_cast<std::int16_t>(i); // volume t holds 24 t .. 24 t + 23
+    ASSERT_EQ(nifti_set_filenames(nim, p.string().c_str(), 0, 1), 0);
+    nifti_image_write(nim);
+    nifti_image_free(nim);
+
+    auto r = lio("info " + test::shell_quote(p.string()), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("is a series of 3 volumes of 4 x 3 x 2 int16 voxels"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("--volume K (0..2)"), std::string::npos) << r.out;
+    r = lio("info --json " + test::shell_quote(p.string()), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["volumes"], 3);
+
+    r = lio("info --volume 2 " + test::shell_quote(p.string()), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("48 .. 71"), std::string::npos) << r.out; // the third volume's range
+    r = lio("convert --volume 1 --quiet " + test::shell_quote(p.string()) + " " + test::shell_quote((dir / "v1.mha").string()), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto v1 = std::get<core::Image3D<std::int16_t>>(io::read_metaimage(dir / "v1.mha"));
+    ASSERT_EQ(v1.data.size(), 24u);
+    for (std::size_t i = 0; i < 24; ++i)
+        EXPECT_EQ(v1.data[i], static_cast<std::int16_t>(24 + i));
+
+    r = lio("convert --volume 3 " + test::shell_quote(p.string()) + " " + test::shell_quote((dir / "v3.mha").string()), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("volume 3 requested but the file holds 3"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "v3.mha"));
+    r = lio("info --volume 0 " + test::shell_quote(small_image(dir).string()), dir);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("--volume chooses a volume of a NIfTI series"), std::string::npos) << r.err;
 }
 
 TEST(Lio, InfoOnTheDicomSeries)

@@ -3,6 +3,7 @@
 #include "lobe/core/image3d.h"
 #include "lobe/io/dicom.h"
 #include "lobe/io/hdf5.h"
+#include "lobe/io/nifti.h"
 
 #include <nlohmann/json.hpp>
 
@@ -63,6 +64,14 @@ Orientation orientation(const core::ImageGeometry& g)
 Loaded load(const std::filesystem::path& path, const Selection& selection, const tools::Progress& progress)
 {
     const io::ImageFormat format = io::image_format(path);
+    if (selection.volume >= 0) {
+        if (format != io::ImageFormat::Nifti)
+            throw core::InvalidInputError(path.string() + ": --volume chooses a volume of a NIfTI series; this is " +
+                                          io::format_name(format));
+        io::NiftiReadParams params;
+        params.volume = selection.volume;
+        return {io::read_nifti(path, params), format, "volume " + std::to_string(selection.volume)};
+    }
     if (format == io::ImageFormat::Hdf5)
         return {io::read_hdf5_image(path, selection.item), format, selection.item};
     if (format == io::ImageFormat::Dicom) {
@@ -94,6 +103,32 @@ bool list_series(const std::filesystem::path& path)
         std::cout << "  " << uid_text(s.series_uid) << "  " << s.modality << "  " << s.size[0] << " x " << s.size[1]
                   << " x " << s.slices << (s.description.empty() ? "" : "  \"" + s.description + "\"")
                   << (s.problem.empty() ? "" : "  (unreadable: " + s.problem + ")") << "\n";
+    return true;
+}
+
+// A NIfTI series of several volumes: say what it holds instead of choosing one.
+bool list_volumes(const std::filesystem::path& path, bool json)
+{
+    if (io::image_format(path) != io::ImageFormat::Nifti)
+        return false;
+    const io::NiftiHeader h = io::read_nifti_header(path);
+    if (h.volumes < 2)
+        return false;
+    const core::ImageGeometry& g = h.geometry;
+    if (json) {
+        nlohmann::ordered_json j;
+        j["file"] = path.string();
+        j["format"] = "NIfTI";
+        j["volumes"] = h.volumes;
+        j["size"] = g.size;
+        j["spacing"] = g.spacing;
+        j["pixel_type"] = core::pixel_type_name(h.pixel_type);
+        std::cout << j.dump(2) << "\n";
+        return true;
+    }
+    std::cout << path.string() << " is a series of " << h.volumes << " volumes of " << g.size[0] << " x " << g.size[1]
+              << " x " << g.size[2] << " " << core::pixel_type_name(h.pixel_type) << " voxels (" << joined(g.spacing, " x ")
+              << " mm); choose one with --volume K (0.." << h.volumes - 1 << ")\n";
     return true;
 }
 
@@ -152,6 +187,8 @@ int info(const std::filesystem::path& path, const Selection& selection, bool jso
     if (selection.series_uid.empty() && !json && list_series(path))
         return tools::kExitOk;
     if (selection.item.empty() && list_container(path, json))
+        return tools::kExitOk;
+    if (selection.volume < 0 && list_volumes(path, json))
         return tools::kExitOk;
     const Loaded l = load(path, selection, progress);
     const core::ImageGeometry& g = core::geometry(l.image);

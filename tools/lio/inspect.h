@@ -15,6 +15,7 @@ namespace lobe::lio {
 struct Selection {
     std::string series_uid; //!< DICOM: SeriesInstanceUID (empty: the folder's only series)
     std::string item;       //!< HDF5: image or label volume name (empty: the only one)
+    int volume = -1;        //!< NIfTI: volume of a 4-D series, 0-based along dim[4] (-1: the only one)
 };
 
 struct Loaded {
@@ -27,7 +28,8 @@ struct Loaded {
 Loaded load(const std::filesystem::path& path, const Selection& selection, const tools::Progress& progress);
 
 //! `lio info`: prints geometry, type and range of one image, or, for a DICOM folder with several
-//! series or an HDF5 container with several items (and no selection), what it holds.
+//! series, an HDF5 container with several items or a NIfTI series of several volumes (and no
+//! selection), what it holds.
 int info(const std::filesystem::path& path, const Selection& selection, bool json, const tools::Progress& progress);
 
 //! 3 decimals with trailing zeros dropped, one kept: 0.9765625 -> "0.977", 2 -> "2.0".

@@ -50,6 +50,8 @@ int main(int argc, char** argv)
     const auto add_selection = [&selection](CLI::App* cmd) {
         cmd->add_option("--series", selection.series_uid, "DICOM: the SeriesInstanceUID to read when a folder holds several");
         cmd->add_option("--item", selection.item, "HDF5: the image or label volume to read when a container holds several");
+        cmd->add_option("--volume", selection.volume, "NIfTI: the volume (0-based) to read from a 4-D series")
+            ->check(CLI::NonNegativeNumber);
     };
     add_selection(info_cmd);
 
