@@ -4,22 +4,19 @@
 // -rss_limit_mb is a bug.
 #include "lobe/io/inrimage.h"
 
+#include "shm_input.h"
+
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <string>
-#include <unistd.h>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size)
 {
-    const bool gz = size >= 2 && data[0] == 0x1f && data[1] == 0x8b;
-    static const std::string base = "/dev/shm/lobe-inr-fuzz-" + std::to_string(::getpid());
-    const std::string path = base + (gz ? ".inr.gz" : ".inr");
-    std::FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f)
+    const std::string path =
+        lobe::fuzz::shm_input(data, size, "inr", lobe::fuzz::starts_gzip(data, size) ? ".inr.gz" : ".inr");
+    if (path.empty())
         return 0;
-    std::fwrite(data, 1, size, f);
-    std::fclose(f);
     try {
         const auto image = lobe::io::read_inrimage(path);
         (void)image;

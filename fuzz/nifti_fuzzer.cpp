@@ -5,24 +5,20 @@
 // allocation beyond libFuzzer's -rss_limit_mb is a bug.
 #include "lobe/io/nifti.h"
 
+#include "shm_input.h"
+
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <string>
-#include <unistd.h>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size)
 {
-    // The reader takes files; /dev/shm keeps them in memory.
-    const bool gz = size >= 2 && data[0] == 0x1f && data[1] == 0x8b;
-    static const std::string base = "/dev/shm/lobe-nifti-fuzz-" + std::to_string(::getpid());
-    const std::string path = base + (gz ? ".nii.gz" : ".nii");
-    std::FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f)
+    const std::string path =
+        lobe::fuzz::shm_input(data, size, "nifti", lobe::fuzz::starts_gzip(data, size) ? ".nii.gz" : ".nii");
+    if (path.empty())
         return 0;
-    std::fwrite(data, 1, size, f);
-    std::fclose(f);
     try {
         const lobe::io::NiftiHeader h = lobe::io::read_nifti_header(path);
         for (int v = 0; v < std::min(h.volumes, 3); ++v) {
