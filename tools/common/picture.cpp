@@ -136,6 +136,28 @@ int fullest_slice(const std::vector<std::size_t>& counts, bool backwards)
     return static_cast<int>(counts.rend() - std::max_element(counts.rbegin(), counts.rend())) - 1;
 }
 
+LabelViews label_views(const core::LabelImage3D& labels, int fullest_from, int centred_from)
+{
+    const int ax = slice_voxel_axis(labels, SliceAxis::Axial), co = slice_voxel_axis(labels, SliceAxis::Coronal);
+    std::vector<std::size_t> per_slice(static_cast<std::size_t>(labels.size[static_cast<std::size_t>(ax)]), 0);
+    double sum = 0, n = 0;
+    for (int k = 0; k < labels.size[2]; ++k)
+        for (int j = 0; j < labels.size[1]; ++j)
+            for (int i = 0; i < labels.size[0]; ++i) {
+                const int v = labels.at(i, j, k);
+                const int ijk[3] = {i, j, k};
+                per_slice[static_cast<std::size_t>(ijk[ax])] += v >= fullest_from;
+                if (v >= centred_from) {
+                    sum += ijk[co];
+                    n += 1;
+                }
+            }
+    LabelViews views;
+    views.axial = fullest_slice(per_slice, axis_runs_backwards(labels, ax));
+    views.coronal = n > 0 ? patient_round(labels, co, sum / n) : -1;
+    return views;
+}
+
 SliceAxis view_across(const core::ImageGeometry& g, int voxel_axis)
 {
     for (SliceAxis a : {SliceAxis::Axial, SliceAxis::Coronal, SliceAxis::Sagittal})

@@ -47,6 +47,16 @@ int patient_round(const core::ImageGeometry& g, int voxel_axis, double index);
 //! in the patient's order (the last stored when the axis runs backwards).
 int fullest_slice(const std::vector<std::size_t>& counts, bool backwards);
 
+//! Where to look at a label volume, as PictureParams::index takes it: the axial slice holding the
+//! most voxels labelled `fullest_from` or above (fullest_slice), and the coronal slice through the
+//! centroid of those labelled `centred_from` or above (patient_round; -1, the middle slice, when
+//! there are none). Either follows the patient's axes whatever the stored orientation.
+struct LabelViews {
+    int axial = 0;
+    int coronal = -1;
+};
+LabelViews label_views(const core::LabelImage3D& labels, int fullest_from, int centred_from);
+
 //! The view that cuts across voxel axis `voxel_axis` of `g`: the plane of a stored slice (a 2-D
 //! result on slice k of a coronal stack is drawn in the coronal view).
 SliceAxis view_across(const core::ImageGeometry& g, int voxel_axis);

@@ -95,26 +95,10 @@ int run_all(AllOptions& o, const tools::Progress& progress, tools::RunRecord& re
             ov.labels = &tissues;
             ov.fill_opacity = 0.3;
             // The axial slice with the most vessel and tumour voxels, and a coronal slice through
-            // the liver's centre; the views follow the patient's axes whatever the stored
-            // orientation (voxel axes `ax` and `co`).
-            const int ax = tools::slice_voxel_axis(volume, tools::SliceAxis::Axial);
-            const int co = tools::slice_voxel_axis(volume, tools::SliceAxis::Coronal);
-            std::vector<std::size_t> per_slice(std::size_t(volume.size[static_cast<std::size_t>(ax)]), 0);
-            double c_co = 0, n = 0;
-            for (int k = 0; k < volume.size[2]; ++k)
-                for (int j = 0; j < volume.size[1]; ++j)
-                    for (int i = 0; i < volume.size[0]; ++i) {
-                        const auto v = tissues.at(i, j, k);
-                        const int ijk[3] = {i, j, k};
-                        per_slice[std::size_t(ijk[ax])] += v >= 2;
-                        if (v) {
-                            c_co += ijk[co];
-                            n += 1;
-                        }
-                    }
-            const std::pair<tools::SliceAxis, int> views[] = {
-                {tools::SliceAxis::Axial, tools::fullest_slice(per_slice, tools::axis_runs_backwards(volume, ax))},
-                {tools::SliceAxis::Coronal, n > 0 ? tools::patient_round(volume, co, c_co / n) : -1}};
+            // the liver's centre.
+            const tools::LabelViews at = tools::label_views(tissues, 2, 1);
+            const std::pair<tools::SliceAxis, int> views[] = {{tools::SliceAxis::Axial, at.axial},
+                                                              {tools::SliceAxis::Coronal, at.coronal}};
             for (const auto& [axis, index] : views) {
                 tools::PictureParams pp;
                 pp.axis = axis;

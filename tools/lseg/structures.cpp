@@ -254,25 +254,13 @@ void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const
 {
     fs::create_directories(dir);
     // The views follow the patient's axes whatever the stored orientation: the axial view cuts
-    // voxel axis `ax`, the coronal view (and the projection) voxel axis `co`; `rest` is the third.
+    // voxel axis `ax`, the coronal view (and the tree's projection) voxel axis `co`; `rest` is the third.
     const int ax = tools::slice_voxel_axis(image, tools::SliceAxis::Axial);
     const int co = tools::slice_voxel_axis(image, tools::SliceAxis::Coronal);
     const int rest = 3 - ax - co;
     const auto n_of = [&image](int a) { return image.size[static_cast<std::size_t>(a)]; };
     // Where the vessels are: the axial slice holding most of them, and their centroid.
-    std::vector<std::size_t> per_slice(std::size_t(n_of(ax)), 0);
-    double c_co = 0, n = 0;
-    for (int k = 0; k < image.size[2]; ++k)
-        for (int j = 0; j < image.size[1]; ++j)
-            for (int i = 0; i < image.size[0]; ++i)
-                if (r.labels.at(i, j, k)) {
-                    const int ijk[3] = {i, j, k};
-                    ++per_slice[std::size_t(ijk[ax])];
-                    c_co += ijk[co];
-                    n += 1;
-                }
-    const int best_slice = tools::fullest_slice(per_slice, tools::axis_runs_backwards(image, ax));
-    const int mid = n > 0 ? tools::patient_round(image, co, c_co / n) : n_of(co) / 2;
+    const tools::LabelViews at = tools::label_views(r.labels, 1, 1);
     tools::Overlay ov;
     ov.labels = &r.labels;
     ov.fill_opacity = 0.55;
@@ -282,7 +270,7 @@ void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const
     lov.fill_opacity = 0.0;
     lov.colours = {{1, {214, 128, 52}, "liver"}};
     const std::string caption = "lseg vessels: portal " + fixed(r.portal_ml, 1) + " mL, hepatic " + fixed(r.hepatic_ml, 1) + " mL";
-    const std::pair<tools::SliceAxis, int> views[] = {{tools::SliceAxis::Axial, best_slice}, {tools::SliceAxis::Coronal, mid}};
+    const std::pair<tools::SliceAxis, int> views[] = {{tools::SliceAxis::Axial, at.axial}, {tools::SliceAxis::Coronal, at.coronal}};
     for (const auto& [axis, index] : views) {
         tools::PictureParams pp;
         pp.axis = axis;

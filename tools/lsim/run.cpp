@@ -146,10 +146,10 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
     std::string status = "completed";
     int frames = 1, next_report = 1;
     double max_force = 0;
-    const int frame_count = int(std::ceil(scene.duration / scene.frame_interval - 1e-9));
+    const int last_frame = int(frame_count(scene)); // bounded by the parser
     const auto t_sim = std::chrono::steady_clock::now();
     try {
-        for (int f = 1; f <= frame_count; ++f) {
+        for (int f = 1; f <= last_frame; ++f) {
             const double t = std::min(scene.duration, f * scene.frame_interval);
             sim->advance_to(t, [&](const mss::StepInfo& s) {
                 pending.push_back({s.time, s.dt, s.force, s.energy.total()});
@@ -167,11 +167,11 @@ int run_scene(const RunOptions& o, const tools::Progress& progress, tools::RunRe
             ++frames;
             if (!o.png_dir.empty() && want_picture(t))
                 picture_frames.push_back(snapshot(*sim, t));
-            if (f * 10 >= next_report * frame_count) {
+            if (f * 10 >= next_report * last_frame) {
                 progress.message("t = " + num(t) + " s (" + std::to_string(next_report * 10) + " %), " +
                                  std::to_string(sim->statistics().steps) + " steps, dt " + num(sim->time_step() * 1e3) +
                                  " ms, force " + num(all_steps.empty() ? 0 : norm(all_steps.back().force)) + " N");
-                next_report = int(f * 10 / frame_count) + 1;
+                next_report = int(f * 10 / last_frame) + 1;
             }
         }
     } catch (const core::SolverError& e) {

@@ -317,7 +317,7 @@ public:
         if (s.simulator.time_step.policy == mss::StepPolicy::Fixed && !(s.simulator.time_step.dt > 0))
             throw core::InvalidInputError(file_ + ": [time] policy = fixed needs dt");
         // Every frame is a copy of the nodes in the output file, and lsim counts frames in an int.
-        const double frames = std::ceil(s.duration / s.frame_interval - 1e-9);
+        const double frames = frame_count(s);
         if (!(frames <= kMaxFrames))
             throw core::InvalidInputError(file_ + ": [time] duration / frame_interval asks for " + number_text(frames) +
                                           " frames, more than " + std::to_string(kMaxFrames) +
@@ -331,6 +331,11 @@ private:
 };
 
 } // namespace
+
+double frame_count(const Scene& s)
+{
+    return std::ceil(s.duration / s.frame_interval - 1e-9);
+}
 
 Scene parse_scene(const std::string& text, const std::string& file) { return Parser(file).parse(text); }
 

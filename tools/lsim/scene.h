@@ -30,6 +30,10 @@ struct Scene {
     std::string text;             // the file as read, for the provenance
 };
 
+// Frames of output after the first: duration / frame_interval rounded up (at most 100 000 in a
+// parsed scene).
+double frame_count(const Scene& s);
+
 // Parses scene text; `file` names it in messages. \throw core::InvalidInputError "file:line: ..."
 Scene parse_scene(const std::string& text, const std::string& file);
 
