@@ -273,6 +273,35 @@ core::LabelImage3D filled(core::LabelImage3D m)
     return m;
 }
 
+//! The grey levels on the midline of the narrowest gap between `piece` and `kept`: the pixels in
+//! neither (not in `m` or `dropped`), inside `inside`, whose larger distance to the two is at most
+//! one pixel more than the smallest such distance r; none if r exceeds limit_mm.
+std::vector<float> gap_midline(const cv::Mat& piece, const cv::Mat& kept, const core::LabelImage3D& inside,
+                               const core::LabelImage3D& m, const core::LabelImage3D& dropped,
+                               const core::ImageF& smoothed, double limit_mm)
+{
+    const auto features = [&m](const cv::Mat& b) {
+        core::LabelImage3D f(m.geometry(), 0);
+        for (std::size_t i = 0; i < f.data.size(); ++i)
+            f.data[i] = b.data[i] ? 1 : 0;
+        return f;
+    };
+    const core::ImageF dp = euclidean_distance(features(piece)), dk = euclidean_distance(features(kept));
+    const auto candidate = [&](std::size_t i) { return inside.data[i] && !m.data[i] && !dropped.data[i]; };
+    float r = std::numeric_limits<float>::infinity();
+    for (std::size_t i = 0; i < dp.data.size(); ++i)
+        if (candidate(i))
+            r = std::min(r, std::max(dp.data[i], dk.data[i]));
+    std::vector<float> line;
+    if (!(double(r) <= limit_mm))
+        return line;
+    const auto limit = static_cast<float>(double(r) + std::max(m.spacing[0], m.spacing[1]));
+    for (std::size_t i = 0; i < dp.data.size(); ++i)
+        if (candidate(i) && std::max(dp.data[i], dk.data[i]) <= limit)
+            line.push_back(smoothed.data[i]);
+    return line;
+}
+
 //! Pieces that keep_liver_pieces dropped (`dropped`, taken out of `m`) but that a vessel cut
 //! off: it touches the previous contour's `rim` (a lobe along the surface; a piece enclosed
 //! within the contour stays dropped, an organ or the IVC's partial volume), and the tissue
@@ -281,10 +310,12 @@ core::LabelImage3D filled(core::LabelImage3D m)
 //! previous contour's `outline` with its holes filled (so not the fat outside the liver). A
 //! contrast-filled vein crossing the liver is brighter than the parenchyma on both its sides; an
 //! organ that took the liver's place meets it along a thin dark line (pericardium, capsule) or a
-//! plain step. Such pieces go back into `m` (and out of `dropped`); returns their pixels.
+//! plain step. A piece with no pixel within reach_mm of both (a wide vein between widened edge
+//! lines) is judged on the midline of its narrowest gap instead, if that lies within midline_mm of
+//! both. Such pieces go back into `m` (and out of `dropped`); returns their pixels.
 std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D& dropped, const core::LabelImage3D& rim,
                                       const core::LabelImage3D& outline, const core::ImageF& smoothed, double hi,
-                                      double reach_mm)
+                                      double reach_mm, double midline_mm)
 {
     const int rx = std::max(1, static_cast<int>(std::lround(reach_mm / m.spacing[0])));
     const int ry = std::max(1, static_cast<int>(std::lround(reach_mm / m.spacing[1])));
@@ -306,7 +337,11 @@ std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D&
             if (near_piece.data[i] && near_kept.data[i] && inside.data[i] && !m.data[i] && !dropped.data[i])
                 between.push_back(smoothed.data[i]);
         }
-        if (!on_rim || between.empty())
+        if (!on_rim)
+            continue;
+        if (between.empty() && midline_mm > reach_mm)
+            between = gap_midline(piece, kept, inside, m, dropped, smoothed, midline_mm);
+        if (between.empty())
             continue;
         const auto mid = between.begin() + static_cast<std::ptrdiff_t>(between.size() / 2);
         std::nth_element(between.begin(), mid, between.end());
@@ -712,7 +747,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             out.report.vessel_cut_mm2 =
                 px * double(restore_vessel_cut_pieces(init_w, dropped, rim, crop(templ, ww), smooth_w,
                                                       c.band.mean + p.tissue_stop_sigmas * c.band.sigma,
-                                                      p.vessel_cut_reach_mm));
+                                                      p.vessel_cut_reach_mm, p.vessel_cut_midline_reach_mm));
         if (count(init_w) == 0) {
             out.stop = true; // no liver-like tissue left under the previous contour: the liver ended
             return out;
@@ -1327,6 +1362,10 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
     if (params.keep_vessel_cut_pieces && !(params.vessel_cut_reach_mm > 0.0 && std::isfinite(params.vessel_cut_reach_mm)))
         throw core::InvalidInputError("segment_liver: vessel_cut_reach_mm must be finite and > 0, is " +
                                       std::to_string(params.vessel_cut_reach_mm));
+    if (params.keep_vessel_cut_pieces &&
+        !(params.vessel_cut_midline_reach_mm >= 0.0 && std::isfinite(params.vessel_cut_midline_reach_mm)))
+        throw core::InvalidInputError("segment_liver: vessel_cut_midline_reach_mm must be finite and >= 0, is " +
+                                      std::to_string(params.vessel_cut_midline_reach_mm));
     if (params.drop_growing_pieces && !(params.piece_lineage_limit >= 1.0 && std::isfinite(params.piece_lineage_limit)))
         throw core::InvalidInputError("segment_liver: piece_lineage_limit must be finite and >= 1, is " +
                                       std::to_string(params.piece_lineage_limit));

@@ -360,6 +360,11 @@ Command add_liver(CLI::App& lseg)
                     "must read brighter than the liver's band")
         ->capture_default_str()
         ->check(CLI::Range(0.5, 50.0));
+    cmd->add_option("--vessel-cut-midline-reach", o->params.vessel_cut_midline_reach_mm,
+                    "Vessel-cut pieces: a piece with no tissue within --vessel-cut-reach of both is judged on the "
+                    "midline of its narrowest gap if that lies within this many mm of both; 0 = never")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 50.0));
     cmd->add_flag("--no-edge-snap", o->no_edge_snap,
                   "Ablation: stack the snake's contours as they are, not moved on to the edge ridge");
     cmd->add_option("--snap-band", o->params.snap.band,

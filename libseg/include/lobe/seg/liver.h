@@ -119,6 +119,9 @@ struct LiverParams {
                                     //!< between them and the kept pieces reads brighter than the
                                     //!< tissue stop's band) start it too
     double vessel_cut_reach_mm = 8.0; //!< that tissue: within this of both (half the widest vein)
+    double vessel_cut_midline_reach_mm = 16.0; //!< a piece with no such tissue (a wide vein between
+                                    //!< widened edge lines) is judged on the midline of its
+                                    //!< narrowest gap if that lies within this of both; 0: never
     bool exclude_dropped_pieces = true; //!< the dropped pieces (organs that took the liver's
                                     //!< place) are also kept out of the slice's contour
     double max_growth_per_mm = 1.6; //!< without a shape memory, the contour moves out at most
