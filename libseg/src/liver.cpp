@@ -719,7 +719,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             // instead of being clipped after the run.
             const core::LabelImage3D env = c.memory && p.use_shape_memory
                                                ? plausible_envelope(*c.memory, templ, c.hu.spacing[2], largest_area_mm2)
-                                               : grow(templ, p.max_growth_per_mm * c.hu.spacing[2]);
+                                               : grow(templ, p.max_growth_per_mm * c.hu.spacing[2] + p.growth_slack_mm);
             if (region.data.empty())
                 region = env;
             else
@@ -790,7 +790,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
     // Only a window around the contour is modelled: the liver moves a few mm per slice, and
     // fields, edges and the level set cost in proportion to the pixels they cover.
     const core::LabelImage3D& around = previous ? templ : init;
-    const Window w = window_around(around, previous ? p.max_growth_per_mm * c.hu.spacing[2] + p.window_margin_mm : p.seed_window_mm);
+    const Window w = window_around(around, previous ? p.window_growth_per_mm * c.hu.spacing[2] + p.window_margin_mm : p.seed_window_mm);
     SnakeParams sp = p.snake;
     if (previous)
         sp.level_set.max_iterations = p.propagation_max_iterations;
@@ -822,11 +822,11 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
                 out.report.recovered = check.plausible;
             }
         } else {
-            // Without a memory the outline may move at most max_growth_per_mm per mm of z. The
-            // mask lies inside the snake's window, which holds all of the previous contour, so
-            // the envelope is needed, and exact, there only.
+            // Without a memory the outline may move at most max_growth_per_mm per mm of z plus
+            // the slack. The mask lies inside the snake's window, which holds all of the previous
+            // contour, so the envelope is needed, and exact, there only.
             core::LabelImage3D mask_w = crop(out.mask, w);
-            const core::LabelImage3D envelope = grow(templ_w, p.max_growth_per_mm * c.hu.spacing[2]);
+            const core::LabelImage3D envelope = grow(templ_w, p.max_growth_per_mm * c.hu.spacing[2] + p.growth_slack_mm);
             for (std::size_t i = 0; i < mask_w.data.size(); ++i)
                 mask_w.data[i] = mask_w.data[i] && envelope.data[i];
             paste(mask_w, w, out.mask);

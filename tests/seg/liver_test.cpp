@@ -564,9 +564,10 @@ TEST(LiverPipeline, KidneyCarriedBesideTheTipIsDropped)
 // is small and only a seventh of its border lies on the rim, so it was dropped as an organ would
 // be; what separates it from the main piece is brighter than the liver (the vein), so it now
 // starts the snake. On this phantom (1.0 x 1.0 x 3 mm, seed 4; the rule and reach were set on
-// 0.8 x 0.8 x 2.5 mm, seed 13, liver.md) it acts on three slices. Measured: truth voxels missed
-// 19 241 -> 13 399, voxels outside the truth 35 944 -> 36 571, Dice 0.942 -> 0.948, score 63.9 ->
-// 66.1. Bounds: half of each gain, and at most 2 000 voxels more outside the truth.
+// 0.8 x 0.8 x 2.5 mm, seed 13, liver.md) it acts on three slices. Measured (since the growth
+// bound's slack, 2026-12-07): truth voxels missed 20 648 -> 13 051, voxels outside the truth
+// 28 900 -> 31 057, Dice 0.9475 -> 0.9538, score 66.7 -> 68.7. Bounds: about half of each gain,
+// and at most 3 000 voxels more outside the truth (under half the voxels it wins back).
 TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
@@ -588,10 +589,10 @@ TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
               << missed(on.mask) << ", outside " << outside(off.mask) << " -> " << outside(on.mask) << ", Dice "
               << m_off.dice << " -> " << m_on.dice << ", score " << s_off << " -> " << s_on << "\n";
     EXPECT_GE(acted, 1);
-    EXPECT_LT(missed(on.mask) + 2900.0, missed(off.mask));
-    EXPECT_LT(outside(on.mask), outside(off.mask) + 2000.0);
-    EXPECT_GE(m_on.dice, m_off.dice + 0.0029);
-    EXPECT_GE(s_on, s_off + 1.1);
+    EXPECT_LT(missed(on.mask) + 3800.0, missed(off.mask));
+    EXPECT_LT(outside(on.mask), outside(off.mask) + 3000.0);
+    EXPECT_GE(m_on.dice, m_off.dice + 0.0031);
+    EXPECT_GE(s_on, s_off + 1.0);
     p.keep_vessel_cut_pieces = true;
     p.vessel_cut_reach_mm = 0.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);

@@ -386,6 +386,10 @@ Command add_liver(CLI::App& lseg)
                     "Without a shape memory: how far the contour may move out between slices, per mm of slice gap")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    cmd->add_option("--growth-slack", o->params.growth_slack_mm,
+                    "Without a shape memory: added to the growth bound on every slice, whatever the slice gap [mm]")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 20.0));
     cmd->add_option("--smoothing", o->params.post.smoothing_mm,
                     "3-D pass: Gaussian sigma of the volume-preserving smoothing [mm]; 0 = none")
         ->capture_default_str()

@@ -124,11 +124,15 @@ struct LiverParams {
                                     //!< narrowest gap if that lies within this of both; 0: never
     bool exclude_dropped_pieces = true; //!< the dropped pieces (organs that took the liver's
                                     //!< place) are also kept out of the slice's contour
-    double max_growth_per_mm = 1.6; //!< without a shape memory, the contour moves out at most
-                                    //!< this many mm per mm of slice gap (4 mm at 2.5 mm slices);
-                                    //!< a leak is cut there
+    double max_growth_per_mm = 1.3; //!< without a shape memory, the contour moves out at most
+                                    //!< this many mm per mm of slice gap, plus growth_slack_mm
+                                    //!< (4.75 mm at 2.5 mm slices, 2.8 mm at 1 mm); a leak is cut there
+    double growth_slack_mm = 1.5;   //!< the part of the bound that does not scale with the slice
+                                    //!< gap (the snake's own error, partial volume)
     double window_margin_mm = 10.0; //!< the snake sees the previous contour's box widened by
-                                    //!< max_growth_per_mm * dz + this
+                                    //!< window_growth_per_mm * dz + this
+    double window_growth_per_mm = 1.6; //!< (apart from the growth bound: the window's size sets
+                                    //!< the edge thresholds, so it is kept as it was tuned)
     double seed_window_mm = 60.0;   //!< ... and the seed's box widened by this on the seed slice
     int propagation_max_iterations = 200; //!< level-set bound on a propagated slice (the front
                                     //!< travels only erosion_mm + the growth bound)
