@@ -275,7 +275,7 @@ core::LabelImage3D filled(core::LabelImage3D m)
 
 //! The grey levels on the midline of the narrowest gap between `piece` and `kept`: the pixels in
 //! neither (not in `m` or `dropped`), inside `inside`, whose larger distance to the two is at most
-//! one pixel more than the smallest such distance r; none if r exceeds limit_mm.
+//! two pixels more than the smallest such distance r; none if r exceeds limit_mm.
 std::vector<float> gap_midline(const cv::Mat& piece, const cv::Mat& kept, const core::LabelImage3D& inside,
                                const core::LabelImage3D& m, const core::LabelImage3D& dropped,
                                const core::ImageF& smoothed, double limit_mm)
@@ -295,7 +295,7 @@ std::vector<float> gap_midline(const cv::Mat& piece, const cv::Mat& kept, const 
     std::vector<float> line;
     if (!(double(r) <= limit_mm))
         return line;
-    const auto limit = static_cast<float>(double(r) + std::max(m.spacing[0], m.spacing[1]));
+    const auto limit = static_cast<float>(double(r) + 2.0 * std::max(m.spacing[0], m.spacing[1]));
     for (std::size_t i = 0; i < dp.data.size(); ++i)
         if (candidate(i) && std::max(dp.data[i], dk.data[i]) <= limit)
             line.push_back(smoothed.data[i]);
@@ -339,11 +339,16 @@ std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D&
         }
         if (!on_rim)
             continue;
-        if (between.empty() && midline_mm > reach_mm)
+        // On the gap's midline the upper quartile: the narrowest gap may run past the vein's end
+        // through liver that the edge lines cut from the start contour (liver-grey, not dark).
+        std::size_t rank = between.size() / 2;
+        if (between.empty() && midline_mm > reach_mm) {
             between = gap_midline(piece, kept, inside, m, dropped, smoothed, midline_mm);
+            rank = 3 * between.size() / 4;
+        }
         if (between.empty())
             continue;
-        const auto mid = between.begin() + static_cast<std::ptrdiff_t>(between.size() / 2);
+        const auto mid = between.begin() + static_cast<std::ptrdiff_t>(rank);
         std::nth_element(between.begin(), mid, between.end());
         if (double(*mid) <= hi)
             continue;

@@ -603,9 +603,10 @@ TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
 // slice 44 lies 8-10 mm from the main piece on either side of the vein and its widened edge lines,
 // so no pixel is within the 8 mm reach of both and the wedge was dropped; judged on the midline of
 // that gap (median 157 HU against a level of 113) it starts the snake, and the liver behind the
-// vein is kept on the slices above. Measured: truth voxels missed 42 359 -> 33 272, voxels outside
-// the truth 15 119 -> 16 973, Dice 0.9599 -> 0.9652, score 69.6 -> 75.0. Bounds: half of each
-// gain, and at most 3 000 voxels more outside the truth.
+// vein is kept on the slices above. Measured (with the growth bound's slack): truth voxels missed
+// 42 279 -> 32 784, voxels outside the truth 15 044 -> 17 075, Dice 0.9600 -> 0.9655, score 69.7
+// -> 75.4 (before the slack 42 359 -> 33 272, 15 119 -> 16 973, 69.6 -> 75.0). Bounds: half of
+// each gain, and at most 3 000 voxels more outside the truth.
 TEST(LiverPipeline, PieceBehindAWideVeinStartsTheSnake)
 {
     const Case c = phantom_case({0.8, 0.8, 3.0}, 8);
@@ -635,6 +636,34 @@ TEST(LiverPipeline, PieceBehindAWideVeinStartsTheSnake)
     EXPECT_GE(s_on, s_off + 2.7);
     p.vessel_cut_midline_reach_mm = -1.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
+}
+
+// The same on a phantom with thin slices (0.9 x 0.9 x 1.5 mm, seed 42): the wedge behind the vein
+// on slice 88 is dropped, and the narrowest gap to the main piece runs past the vein's end through
+// liver that the edge lines cut from the start contour, so the midline's median reads liver grey
+// (95 HU against the level of 114); its upper quartile reads the vein (142). Measured: truth voxels
+// missed 47 898 -> 31 344, outside the truth 29 699 -> 30 555, Dice 0.9661 -> 0.9731, score
+// 74.2 -> 81.3 (with the median: no change). Bounds: half of each gain, at most 3 000 voxels more
+// outside the truth.
+TEST(LiverPipeline, WideVeinGapIsReadByItsBrightQuarter)
+{
+    const Case c = phantom_case({0.9, 0.9, 1.5}, 42);
+    seg::LiverParams p;
+    const seg::LiverResult on = seg::segment_liver(c.hu, p);
+    p.vessel_cut_midline_reach_mm = 0.0;
+    const seg::LiverResult off = seg::segment_liver(c.hu, p);
+    const auto missed = [&](const core::LabelImage3D& m) { return test::voxels_missed(m, c.truth); };
+    const auto outside = [&](const core::LabelImage3D& m) { return test::voxels_outside(m, c.truth); };
+    const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
+    const auto m_off = seg::evaluate_segmentation(off.mask, c.truth);
+    const double s_on = seg::sliver_score(m_on).total, s_off = seg::sliver_score(m_off).total;
+    std::cerr << "wide vein, thin slices: missed " << missed(off.mask) << " -> " << missed(on.mask) << ", outside "
+              << outside(off.mask) << " -> " << outside(on.mask) << ", Dice " << m_off.dice << " -> " << m_on.dice
+              << ", score " << s_off << " -> " << s_on << "\n";
+    EXPECT_LT(missed(on.mask) + 8000.0, missed(off.mask));
+    EXPECT_LT(outside(on.mask), outside(off.mask) + 3000.0);
+    EXPECT_GE(m_on.dice, m_off.dice + 0.0035);
+    EXPECT_GE(s_on, s_off + 3.5);
 }
 
 // Vessel inlets (LiverParams::fill_vessel_inlets, SLIVER07 convention): the hepatic veins run to
