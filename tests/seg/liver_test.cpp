@@ -75,6 +75,50 @@ std::size_t voxels_on(const core::LabelImage3D& m, const core::LabelImage3D& lab
     return n;
 }
 
+// A component switched on and off on one case: both results, and what the tests compare of them.
+struct OnOff {
+    seg::LiverResult on, off;
+    seg::SegmentationMeasures m_on, m_off;
+    double score_on = 0, score_off = 0;
+    double missed_on = 0, missed_off = 0;   // truth voxels left out
+    double outside_on = 0, outside_off = 0; // mask voxels outside the truth
+
+    // "what: missed a -> b, outside c -> d, Dice e -> f, score g -> h"
+    void print(const std::string& what) const
+    {
+        std::cerr << what << ": missed " << missed_off << " -> " << missed_on << ", outside " << outside_off << " -> "
+                  << outside_on << ", Dice " << m_off.dice << " -> " << m_on.dice << ", score " << score_off << " -> "
+                  << score_on << "\n";
+    }
+};
+
+// Runs the pipeline with `p` (on) and with `p` as switch_off(p) leaves it (off).
+template <class SwitchOff> OnOff on_and_off(const Case& c, seg::LiverParams p, SwitchOff&& switch_off)
+{
+    OnOff r;
+    r.on = seg::segment_liver(c.hu, p);
+    switch_off(p);
+    r.off = seg::segment_liver(c.hu, p);
+    r.m_on = seg::evaluate_segmentation(r.on.mask, c.truth);
+    r.m_off = seg::evaluate_segmentation(r.off.mask, c.truth);
+    r.score_on = seg::sliver_score(r.m_on).total;
+    r.score_off = seg::sliver_score(r.m_off).total;
+    r.missed_on = test::voxels_missed(r.on.mask, c.truth);
+    r.missed_off = test::voxels_missed(r.off.mask, c.truth);
+    r.outside_on = test::voxels_outside(r.on.mask, c.truth);
+    r.outside_off = test::voxels_outside(r.off.mask, c.truth);
+    return r;
+}
+
+// Slices where the vessel-cut rule kept a piece.
+int vessel_cut_slices(const seg::LiverResult& r)
+{
+    int n = 0;
+    for (const auto& s : r.slices)
+        n += s.vessel_cut_mm2 > 0;
+    return n;
+}
+
 double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth_slice)
 {
     std::size_t in = 0, all = 0;
@@ -572,28 +616,15 @@ TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
     seg::LiverParams p;
-    const seg::LiverResult on = seg::segment_liver(c.hu, p);
-    p.keep_vessel_cut_pieces = false;
-    const seg::LiverResult off = seg::segment_liver(c.hu, p);
-    const auto missed = [&](const core::LabelImage3D& m) { return test::voxels_missed(m, c.truth); };
-    const auto outside = [&](const core::LabelImage3D& m) { return test::voxels_outside(m, c.truth); };
-    int acted = 0;
-    for (const auto& s : on.slices)
-        acted += s.vessel_cut_mm2 > 0;
-    for (const auto& s : off.slices)
+    const OnOff r = on_and_off(c, p, [](seg::LiverParams& q) { q.keep_vessel_cut_pieces = false; });
+    for (const auto& s : r.off.slices)
         EXPECT_EQ(s.vessel_cut_mm2, 0.0);
-    const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
-    const auto m_off = seg::evaluate_segmentation(off.mask, c.truth);
-    const double s_on = seg::sliver_score(m_on).total, s_off = seg::sliver_score(m_off).total;
-    std::cerr << "vessel-cut pieces: acted on " << acted << " slices, missed " << missed(off.mask) << " -> "
-              << missed(on.mask) << ", outside " << outside(off.mask) << " -> " << outside(on.mask) << ", Dice "
-              << m_off.dice << " -> " << m_on.dice << ", score " << s_off << " -> " << s_on << "\n";
-    EXPECT_GE(acted, 1);
-    EXPECT_LT(missed(on.mask) + 3800.0, missed(off.mask));
-    EXPECT_LT(outside(on.mask), outside(off.mask) + 3000.0);
-    EXPECT_GE(m_on.dice, m_off.dice + 0.0031);
-    EXPECT_GE(s_on, s_off + 1.0);
-    p.keep_vessel_cut_pieces = true;
+    r.print("vessel-cut pieces on " + std::to_string(vessel_cut_slices(r.on)) + " slices");
+    EXPECT_GE(vessel_cut_slices(r.on), 1);
+    EXPECT_LT(r.missed_on + 3800.0, r.missed_off);
+    EXPECT_LT(r.outside_on, r.outside_off + 3000.0);
+    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0031);
+    EXPECT_GE(r.score_on, r.score_off + 1.0);
     p.vessel_cut_reach_mm = 0.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }
@@ -611,29 +642,14 @@ TEST(LiverPipeline, PieceBehindAWideVeinStartsTheSnake)
 {
     const Case c = phantom_case({0.8, 0.8, 3.0}, 8);
     seg::LiverParams p;
-    const seg::LiverResult on = seg::segment_liver(c.hu, p);
-    p.vessel_cut_midline_reach_mm = 0.0;
-    const seg::LiverResult off = seg::segment_liver(c.hu, p);
-    const auto acted = [](const seg::LiverResult& r) {
-        int n = 0;
-        for (const auto& s : r.slices)
-            n += s.vessel_cut_mm2 > 0;
-        return n;
-    };
-    const auto missed = [&](const core::LabelImage3D& m) { return test::voxels_missed(m, c.truth); };
-    const auto outside = [&](const core::LabelImage3D& m) { return test::voxels_outside(m, c.truth); };
-    const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
-    const auto m_off = seg::evaluate_segmentation(off.mask, c.truth);
-    const double s_on = seg::sliver_score(m_on).total, s_off = seg::sliver_score(m_off).total;
-    std::cerr << "wide vein: vessel-cut pieces on " << acted(off) << " -> " << acted(on) << " slices, missed "
-              << missed(off.mask) << " -> " << missed(on.mask) << ", outside " << outside(off.mask) << " -> "
-              << outside(on.mask) << ", Dice " << m_off.dice << " -> " << m_on.dice << ", score " << s_off << " -> "
-              << s_on << "\n";
-    EXPECT_GT(acted(on), acted(off));
-    EXPECT_LT(missed(on.mask) + 4500.0, missed(off.mask));
-    EXPECT_LT(outside(on.mask), outside(off.mask) + 3000.0);
-    EXPECT_GE(m_on.dice, m_off.dice + 0.0026);
-    EXPECT_GE(s_on, s_off + 2.7);
+    const OnOff r = on_and_off(c, p, [](seg::LiverParams& q) { q.vessel_cut_midline_reach_mm = 0.0; });
+    r.print("wide vein: vessel-cut pieces on " + std::to_string(vessel_cut_slices(r.off)) + " -> " +
+            std::to_string(vessel_cut_slices(r.on)) + " slices");
+    EXPECT_GT(vessel_cut_slices(r.on), vessel_cut_slices(r.off));
+    EXPECT_LT(r.missed_on + 4500.0, r.missed_off);
+    EXPECT_LT(r.outside_on, r.outside_off + 3000.0);
+    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0026);
+    EXPECT_GE(r.score_on, r.score_off + 2.7);
     p.vessel_cut_midline_reach_mm = -1.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }
@@ -648,22 +664,12 @@ TEST(LiverPipeline, PieceBehindAWideVeinStartsTheSnake)
 TEST(LiverPipeline, WideVeinGapIsReadByItsBrightQuarter)
 {
     const Case c = phantom_case({0.9, 0.9, 1.5}, 42);
-    seg::LiverParams p;
-    const seg::LiverResult on = seg::segment_liver(c.hu, p);
-    p.vessel_cut_midline_reach_mm = 0.0;
-    const seg::LiverResult off = seg::segment_liver(c.hu, p);
-    const auto missed = [&](const core::LabelImage3D& m) { return test::voxels_missed(m, c.truth); };
-    const auto outside = [&](const core::LabelImage3D& m) { return test::voxels_outside(m, c.truth); };
-    const auto m_on = seg::evaluate_segmentation(on.mask, c.truth);
-    const auto m_off = seg::evaluate_segmentation(off.mask, c.truth);
-    const double s_on = seg::sliver_score(m_on).total, s_off = seg::sliver_score(m_off).total;
-    std::cerr << "wide vein, thin slices: missed " << missed(off.mask) << " -> " << missed(on.mask) << ", outside "
-              << outside(off.mask) << " -> " << outside(on.mask) << ", Dice " << m_off.dice << " -> " << m_on.dice
-              << ", score " << s_off << " -> " << s_on << "\n";
-    EXPECT_LT(missed(on.mask) + 8000.0, missed(off.mask));
-    EXPECT_LT(outside(on.mask), outside(off.mask) + 3000.0);
-    EXPECT_GE(m_on.dice, m_off.dice + 0.0035);
-    EXPECT_GE(s_on, s_off + 3.5);
+    const OnOff r = on_and_off(c, seg::LiverParams{}, [](seg::LiverParams& q) { q.vessel_cut_midline_reach_mm = 0.0; });
+    r.print("wide vein, thin slices");
+    EXPECT_LT(r.missed_on + 8000.0, r.missed_off);
+    EXPECT_LT(r.outside_on, r.outside_off + 3000.0);
+    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0035);
+    EXPECT_GE(r.score_on, r.score_off + 3.5);
 }
 
 // Vessel inlets (LiverParams::fill_vessel_inlets, SLIVER07 convention): the hepatic veins run to
