@@ -692,6 +692,12 @@ core::LabelImage3D heart_model(const Context& c, int lowest, double bright)
     return model;
 }
 
+//! How far a contour may move out between slices dz apart without a shape memory [mm].
+double growth_bound_mm(const LiverParams& p, double dz)
+{
+    return p.max_growth_per_mm * dz + p.growth_slack_mm;
+}
+
 //! Segments slice k from the previous slice's accepted mask, or from the seed (previous null).
 SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& start, const core::LabelImage3D* previous,
                            double largest_area_mm2, const core::LabelImage3D* above_contact = nullptr,
@@ -724,7 +730,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             // instead of being clipped after the run.
             const core::LabelImage3D env = c.memory && p.use_shape_memory
                                                ? plausible_envelope(*c.memory, templ, c.hu.spacing[2], largest_area_mm2)
-                                               : grow(templ, p.max_growth_per_mm * c.hu.spacing[2] + p.growth_slack_mm);
+                                               : grow(templ, growth_bound_mm(p, c.hu.spacing[2]));
             if (region.data.empty())
                 region = env;
             else
@@ -831,7 +837,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             // the slack. The mask lies inside the snake's window, which holds all of the previous
             // contour, so the envelope is needed, and exact, there only.
             core::LabelImage3D mask_w = crop(out.mask, w);
-            const core::LabelImage3D envelope = grow(templ_w, p.max_growth_per_mm * c.hu.spacing[2] + p.growth_slack_mm);
+            const core::LabelImage3D envelope = grow(templ_w, growth_bound_mm(p, c.hu.spacing[2]));
             for (std::size_t i = 0; i < mask_w.data.size(); ++i)
                 mask_w.data[i] = mask_w.data[i] && envelope.data[i];
             paste(mask_w, w, out.mask);
@@ -1330,6 +1336,13 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
     if (hu.size[2] < params.min_slices)
         throw core::InvalidInputError("segment_liver: the volume has " + std::to_string(hu.size[2]) +
                                       " slices; the liver pipeline needs at least " + std::to_string(params.min_slices));
+    for (const auto& [name, v] : {std::pair<const char*, double>{"max_growth_per_mm", params.max_growth_per_mm},
+                                  {"growth_slack_mm", params.growth_slack_mm},
+                                  {"window_growth_per_mm", params.window_growth_per_mm},
+                                  {"window_margin_mm", params.window_margin_mm}})
+        if (!std::isfinite(v) || v < 0)
+            throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
+                                          std::to_string(v));
     if (params.use_dome_contact)
         for (const auto& [name, v] :
              {std::pair<const char*, double>{"contact_smoothing_mm", params.contact_smoothing_mm},

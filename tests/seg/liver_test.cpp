@@ -437,6 +437,21 @@ TEST(LiverPipeline, RefusesWhatItCannotSegment)
     core::ImageF nan(g, 0.f);
     nan.data[5] = std::numeric_limits<float>::quiet_NaN();
     EXPECT_THROW(seg::segment_liver(nan), core::InvalidInputError);
+    // So is a negative or non-finite growth bound or window.
+    for (const auto& [name, set] : {std::pair<std::string, void (*)(seg::LiverParams&)>{
+                                        "growth_slack_mm", [](seg::LiverParams& q) { q.growth_slack_mm = -1.0; }},
+                                    {"max_growth_per_mm",
+                                     [](seg::LiverParams& q) { q.max_growth_per_mm = std::numeric_limits<double>::infinity(); }},
+                                    {"window_growth_per_mm", [](seg::LiverParams& q) { q.window_growth_per_mm = -0.5; }}}) {
+        seg::LiverParams q;
+        set(q);
+        try {
+            seg::segment_liver(core::ImageF(g, 0.f), q);
+            ADD_FAILURE() << "a bad " << name << " should be refused";
+        } catch (const core::InvalidInputError& e) {
+            EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+        }
+    }
     // A dome-contact parameter that is negative or not finite is named, before any work.
     seg::LiverParams bad;
     bad.contact_sigmas = std::numeric_limits<double>::quiet_NaN();
