@@ -64,6 +64,10 @@ TEST(Picture, RoundingAndTiesFollowThePatientNotTheStorage)
     EXPECT_EQ(tools::patient_round(c, 1, 4.5), 4);
     EXPECT_EQ(tools::patient_round(c, 1, 4.4), 4);
     EXPECT_EQ(tools::patient_round(c, 1, 4.6), 5);
+    // The form for loops along one axis, its direction given: the same voxels.
+    for (const double x : {4.4, 4.5, 4.6})
+        EXPECT_EQ(tools::patient_round(true, c.size[1], x), tools::patient_round(c, 1, x)) << x;
+    EXPECT_EQ(tools::patient_round(false, a.image.size[2], 3.5), 4);
     // The fullest of tied slices: the first in the patient's order.
     const std::vector<std::size_t> counts{1, 3, 3, 2};
     EXPECT_EQ(tools::fullest_slice(counts, false), 1);

@@ -121,9 +121,14 @@ bool axis_runs_backwards(const core::ImageGeometry& g, int voxel_axis)
 
 int patient_round(const core::ImageGeometry& g, int voxel_axis, double index)
 {
-    if (!axis_runs_backwards(g, voxel_axis))
+    return patient_round(axis_runs_backwards(g, voxel_axis), g.size[static_cast<std::size_t>(voxel_axis)], index);
+}
+
+int patient_round(bool backwards, int size, double index)
+{
+    if (!backwards)
         return static_cast<int>(std::lround(index));
-    const double last = g.size[static_cast<std::size_t>(voxel_axis)] - 1;
+    const double last = size - 1;
     return static_cast<int>(last - double(std::lround(last - index)));
 }
 

@@ -43,6 +43,10 @@ bool axis_runs_backwards(const core::ImageGeometry& g, int voxel_axis);
 //! stored orientation, so pictures do not depend on it.
 int patient_round(const core::ImageGeometry& g, int voxel_axis, double index);
 
+//! The same for an axis of `size` voxels whose direction is known (`backwards` from
+//! axis_runs_backwards), for loops that round many indices along one axis.
+int patient_round(bool backwards, int size, double index);
+
 //! The index of the largest of `counts` (per slice along a voxel axis), ties going to the first
 //! in the patient's order (the last stored when the axis runs backwards).
 int fullest_slice(const std::vector<std::size_t>& counts, bool backwards);

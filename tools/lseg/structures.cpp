@@ -297,6 +297,8 @@ void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const
                     const auto q = flat(i, j, k);
                     mip.at(q[0], q[1], q[2]) = std::max(mip.at(q[0], q[1], q[2]), image.at(i, j, k));
                 }
+    const std::array<bool, 3> backwards{tools::axis_runs_backwards(image, 0), tools::axis_runs_backwards(image, 1),
+                                        tools::axis_runs_backwards(image, 2)};
     for (const auto& e : r.graph.edges)
         for (std::size_t p = 0; p + 1 < e.points.size(); ++p) {
             const core::Vec3 a = image.physical_to_index(e.points[p]), b = image.physical_to_index(e.points[p + 1]);
@@ -305,7 +307,8 @@ void write_vessel_pictures(const fs::path& dir, const std::string& prefix, const
                 const double t = double(s) / steps;
                 std::array<int, 3> q{0, 0, 0};
                 for (int d : {ax, rest})
-                    q[static_cast<std::size_t>(d)] = tools::patient_round(image, d, a[d] + (b[d] - a[d]) * t);
+                    q[static_cast<std::size_t>(d)] = tools::patient_round(backwards[static_cast<std::size_t>(d)],
+                                                                          n_of(d), a[d] + (b[d] - a[d]) * t);
                 if (q[static_cast<std::size_t>(ax)] >= 0 && q[static_cast<std::size_t>(ax)] < n_of(ax) &&
                     q[static_cast<std::size_t>(rest)] >= 0 && q[static_cast<std::size_t>(rest)] < n_of(rest))
                     lines.at(q[0], q[1], q[2]) = static_cast<std::uint8_t>(std::clamp(static_cast<int>(e.level), 1, 5));
