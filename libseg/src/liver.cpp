@@ -19,11 +19,13 @@
 #include <deque>
 #include <exception>
 #include <future>
+#include <initializer_list>
 #include <limits>
 #include <mutex>
 #include <optional>
 #include <sstream>
 #include <thread>
+#include <utility>
 
 namespace lobe::seg {
 namespace {
@@ -1336,24 +1338,24 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
     if (hu.size[2] < params.min_slices)
         throw core::InvalidInputError("segment_liver: the volume has " + std::to_string(hu.size[2]) +
                                       " slices; the liver pipeline needs at least " + std::to_string(params.min_slices));
-    for (const auto& [name, v] : {std::pair<const char*, double>{"max_growth_per_mm", params.max_growth_per_mm},
-                                  {"growth_slack_mm", params.growth_slack_mm},
-                                  {"window_growth_per_mm", params.window_growth_per_mm},
-                                  {"window_margin_mm", params.window_margin_mm}})
-        if (!std::isfinite(v) || v < 0)
-            throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
-                                          std::to_string(v));
-    if (params.use_dome_contact)
-        for (const auto& [name, v] :
-             {std::pair<const char*, double>{"contact_smoothing_mm", params.contact_smoothing_mm},
-              {"contact_sigmas", params.contact_sigmas},
-              {"contact_min_dip", params.contact_min_dip},
-              {"contact_closing_mm", params.contact_closing_mm},
-              {"contact_min_area_mm2", params.contact_min_area_mm2},
-              {"contact_heart_radius_mm", params.contact_heart_radius_mm}})
+    using Named = std::pair<const char*, double>;
+    const auto non_negative = [](std::initializer_list<Named> values) {
+        for (const auto& [name, v] : values)
             if (!std::isfinite(v) || v < 0)
                 throw core::InvalidInputError(std::string("segment_liver: ") + name + " must be finite and >= 0, is " +
                                               std::to_string(v));
+    };
+    non_negative({{"max_growth_per_mm", params.max_growth_per_mm},
+                  {"growth_slack_mm", params.growth_slack_mm},
+                  {"window_growth_per_mm", params.window_growth_per_mm},
+                  {"window_margin_mm", params.window_margin_mm}});
+    if (params.use_dome_contact)
+        non_negative({{"contact_smoothing_mm", params.contact_smoothing_mm},
+                      {"contact_sigmas", params.contact_sigmas},
+                      {"contact_min_dip", params.contact_min_dip},
+                      {"contact_closing_mm", params.contact_closing_mm},
+                      {"contact_min_area_mm2", params.contact_min_area_mm2},
+                      {"contact_heart_radius_mm", params.contact_heart_radius_mm}});
     if (params.fill_surface_lesions)
         check_surface_lesion_params(params.surface_lesions, "segment_liver: surface_lesions"); // before the work
     if (params.fill_vessel_inlets &&
