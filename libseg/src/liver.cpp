@@ -275,31 +275,30 @@ core::LabelImage3D filled(core::LabelImage3D m)
     return m;
 }
 
-//! The grey levels on the midline of the narrowest gap between `piece` and `kept`: the pixels in
-//! neither (not in `m` or `dropped`), inside `inside`, whose larger distance to the two is at most
-//! two pixels more than the smallest such distance r; none if r exceeds limit_mm.
-std::vector<float> gap_midline(const cv::Mat& piece, const cv::Mat& kept, const core::LabelImage3D& inside,
+//! The grey levels on the midline of the narrowest gap between `piece` and the kept pieces of `m`
+//! (`to_kept`: the distance to them): the pixels in neither (not in `m` or `dropped`), inside
+//! `inside`, whose larger distance to the two is at most two pixels more than the smallest such
+//! distance r; none if r exceeds limit_mm.
+std::vector<float> gap_midline(const cv::Mat& piece, const core::ImageF& to_kept, const core::LabelImage3D& inside,
                                const core::LabelImage3D& m, const core::LabelImage3D& dropped,
                                const core::ImageF& smoothed, double limit_mm)
 {
-    const auto features = [&m](const cv::Mat& b) {
-        core::LabelImage3D f(m.geometry(), 0);
-        for (std::size_t i = 0; i < f.data.size(); ++i)
-            f.data[i] = b.data[i] ? 1 : 0;
-        return f;
-    };
-    const core::ImageF dp = euclidean_distance(features(piece)), dk = euclidean_distance(features(kept));
+    core::LabelImage3D piece_mask(m.geometry(), 0);
+    for (std::size_t i = 0; i < piece_mask.data.size(); ++i)
+        piece_mask.data[i] = piece.data[i] ? 1 : 0;
+    const core::ImageF dp = euclidean_distance(piece_mask);
+    const auto& dk = to_kept.data;
     const auto candidate = [&](std::size_t i) { return inside.data[i] && !m.data[i] && !dropped.data[i]; };
     float r = std::numeric_limits<float>::infinity();
     for (std::size_t i = 0; i < dp.data.size(); ++i)
         if (candidate(i))
-            r = std::min(r, std::max(dp.data[i], dk.data[i]));
+            r = std::min(r, std::max(dp.data[i], dk[i]));
     std::vector<float> line;
     if (!(double(r) <= limit_mm))
         return line;
     const auto limit = static_cast<float>(double(r) + 2.0 * std::max(m.spacing[0], m.spacing[1]));
     for (std::size_t i = 0; i < dp.data.size(); ++i)
-        if (candidate(i) && std::max(dp.data[i], dk.data[i]) <= limit)
+        if (candidate(i) && std::max(dp.data[i], dk[i]) <= limit)
             line.push_back(smoothed.data[i]);
     return line;
 }
@@ -328,6 +327,7 @@ std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D&
     cv::Mat bin(dropped.size[1], dropped.size[0], CV_8U, dropped.data.data()), labels;
     const int n = cv::connectedComponents(bin, labels, 8, CV_32S);
     std::vector<std::size_t> back;
+    std::optional<core::ImageF> to_kept; // for gap_midline; m changes only after the loop
     for (int l = 1; l < n; ++l) {
         const cv::Mat piece = labels == l;
         cv::Mat near_piece;
@@ -345,7 +345,9 @@ std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D&
         // through liver that the edge lines cut from the start contour (liver-grey, not dark).
         std::size_t rank = between.size() / 2;
         if (between.empty() && midline_mm > reach_mm) {
-            between = gap_midline(piece, kept, inside, m, dropped, smoothed, midline_mm);
+            if (!to_kept)
+                to_kept = euclidean_distance(m);
+            between = gap_midline(piece, *to_kept, inside, m, dropped, smoothed, midline_mm);
             rank = 3 * between.size() / 4;
         }
         if (between.empty())
@@ -1382,10 +1384,8 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
     if (params.keep_vessel_cut_pieces && !(params.vessel_cut_reach_mm > 0.0 && std::isfinite(params.vessel_cut_reach_mm)))
         throw core::InvalidInputError("segment_liver: vessel_cut_reach_mm must be finite and > 0, is " +
                                       std::to_string(params.vessel_cut_reach_mm));
-    if (params.keep_vessel_cut_pieces &&
-        !(params.vessel_cut_midline_reach_mm >= 0.0 && std::isfinite(params.vessel_cut_midline_reach_mm)))
-        throw core::InvalidInputError("segment_liver: vessel_cut_midline_reach_mm must be finite and >= 0, is " +
-                                      std::to_string(params.vessel_cut_midline_reach_mm));
+    if (params.keep_vessel_cut_pieces)
+        non_negative({{"vessel_cut_midline_reach_mm", params.vessel_cut_midline_reach_mm}});
     if (params.drop_growing_pieces && !(params.piece_lineage_limit >= 1.0 && std::isfinite(params.piece_lineage_limit)))
         throw core::InvalidInputError("segment_liver: piece_lineage_limit must be finite and >= 1, is " +
                                       std::to_string(params.piece_lineage_limit));
