@@ -81,6 +81,17 @@ detail::Box box_of(const Window& w)
     return {{w.i0, w.j0, 0}, {w.i0 + w.ni - 1, w.j0 + w.nj - 1, 0}};
 }
 
+//! True if the window's mask `m_w` reaches an edge of window `w` that is not an edge of the
+//! slice grid `g` (the contour was stopped by the window).
+bool reaches_inner_edge(const core::LabelImage3D& m_w, const Window& w, const core::ImageGeometry& g)
+{
+    if (count(m_w) == 0)
+        return false;
+    const detail::Box b = detail::bounding_box(m_w);
+    return (b.lo[0] == 0 && w.i0 > 0) || (b.lo[1] == 0 && w.j0 > 0) ||
+           (b.hi[0] == w.ni - 1 && w.i0 + w.ni < g.size[0]) || (b.hi[1] == w.nj - 1 && w.j0 + w.nj < g.size[1]);
+}
+
 template <class T>
 core::Image3D<T> crop(const core::Image3D<T>& img, const Window& w)
 {
@@ -804,15 +815,28 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
 
     // Only a window around the contour is modelled: the liver moves a few mm per slice, and
     // fields, edges and the level set cost in proportion to the pixels they cover.
-    const core::LabelImage3D& around = previous ? templ : init;
-    const Window w = window_around(around, previous ? p.window_growth_per_mm * c.hu.spacing[2] + p.window_margin_mm : p.seed_window_mm);
+    const Window w0 = window_around(previous ? templ : init, previous ? p.window_growth_per_mm * c.hu.spacing[2] + p.window_margin_mm
+                                                                   : p.seed_window_mm);
     SnakeParams sp = p.snake;
     if (previous)
         sp.level_set.max_iterations = p.propagation_max_iterations;
-    const core::LabelImage3D templ_w = previous ? crop(templ, w) : core::LabelImage3D();
-    const core::LabelImage3D region_w = region.data.empty() ? core::LabelImage3D() : crop(region, w);
-    const SnakeResult r = segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr,
-                                        region_w.data.empty() ? nullptr : &region_w);
+    const auto run_snake = [&](const Window& w) {
+        const core::LabelImage3D templ_w = previous ? crop(templ, w) : core::LabelImage3D();
+        const core::LabelImage3D region_w = region.data.empty() ? core::LabelImage3D() : crop(region, w);
+        return segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr,
+                             region_w.data.empty() ? nullptr : &region_w);
+    };
+    Window w = w0;
+    SnakeResult r = run_snake(w);
+    if (!previous && p.widen_seed_window && reaches_inner_edge(r.mask, w, g)) {
+        // The seed's contour stopped at its window's edge, not at the liver's: the left lobe lies
+        // far from a seed on the right (on every phantom it was cut there). Run again on the
+        // whole slice; a contour that stopped inside its window keeps it, since the window's
+        // size sets the snake's edge thresholds (docs/algorithms/liver.md).
+        w = Window{0, 0, g.size[0], g.size[1]};
+        r = run_snake(w);
+        out.report.seed_window_widened = true;
+    }
     out.mask = core::LabelImage3D(g, 0);
     paste(r.mask, w, out.mask);
     out.report.iterations = r.iterations;
@@ -841,7 +865,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
             // the slack. The mask lies inside the snake's window, which holds all of the previous
             // contour, so the envelope is needed, and exact, there only.
             core::LabelImage3D mask_w = crop(out.mask, w);
-            const core::LabelImage3D envelope = grow(templ_w, growth_bound_mm(p, c.hu.spacing[2]));
+            const core::LabelImage3D envelope = grow(crop(templ, w), growth_bound_mm(p, c.hu.spacing[2]));
             for (std::size_t i = 0; i < mask_w.data.size(); ++i)
                 mask_w.data[i] = mask_w.data[i] && envelope.data[i];
             paste(mask_w, w, out.mask);
@@ -920,6 +944,7 @@ void report(const Context& c, const LiverSliceReport& r)
           : r.leak_stopped ? " (leak stop)"
                            : " (bound)")
       << (r.competition_used ? ", competition" : "")
+      << (r.seed_window_widened ? ", on the whole slice (the seed's window cut it)" : "")
       << (r.rejected ? (r.recovered ? ", clipped by the shape memory (" : ", implausible even clipped (") +
                            r.shape_reason + ")"
                      : "")
@@ -1350,7 +1375,8 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
     non_negative({{"max_growth_per_mm", params.max_growth_per_mm},
                   {"growth_slack_mm", params.growth_slack_mm},
                   {"window_growth_per_mm", params.window_growth_per_mm},
-                  {"window_margin_mm", params.window_margin_mm}});
+                  {"window_margin_mm", params.window_margin_mm},
+                  {"seed_window_mm", params.seed_window_mm}});
     if (params.use_dome_contact)
         non_negative({{"contact_smoothing_mm", params.contact_smoothing_mm},
                       {"contact_sigmas", params.contact_sigmas},

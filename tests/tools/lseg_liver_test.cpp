@@ -232,7 +232,7 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
     // The settings of the edge snap, growing pieces, vessel-cut pieces, tissue trim, vessel inlets, heart model, surface lesions, dark rim, wall margin
     // and growth bound: out of range is a bad command line.
     for (const char* bad : {"--snap-band 0", "--snap-iterations 0", "--piece-growth 0.5", "--piece-lineage-growth 0.5", "--vessel-cut-reach 0",
-                            "--vessel-cut-midline-reach -1", "--growth-slack -1", "--growth-slack 30", "--tissue-trim-keep 0", "--vessel-inlet-closing 0",
+                            "--vessel-cut-midline-reach -1", "--growth-slack -1", "--growth-slack 30", "--seed-window 0", "--tissue-trim-keep 0", "--vessel-inlet-closing 0",
                             "--heart-wall -1", "--heart-wall 60",
                             "--surface-lesion-closing 0", "--dark-rim-level 0", "--dark-rim-level 1.5",
                             "--wall-margin -1", "--wall-margin 40"}) {

@@ -32,7 +32,8 @@ struct LiverOptions {
          no_shape_memory = false, no_3d_pass = false, no_dome_contact = false, layer_stop = false, bias_field = false,
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
          no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
-         no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false, no_wall_margin = false;
+         no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false, no_wall_margin = false,
+         no_seed_window_widening = false;
     seg::LiverParams params;
 };
 
@@ -115,6 +116,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     if (o.no_wall_margin)
         p.wall_margin_mm = 0.0;
     p.use_heart_model = !o.no_heart_model;
+    p.widen_seed_window = !o.no_seed_window_widening;
     p.layer_holds_pressure = o.layer_stop;
     p.envelope_holds_pressure = o.envelope_stop;
     p.mr.bias_correction = o.bias_field;
@@ -193,6 +195,11 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.rotation_deg", fixed(r.start.rotation_deg, 1));
         param("result.start_slice.message", r.start.message);
         param("result.seed.message", r.seed.message);
+        param("result.seed_window_widened",
+              std::any_of(r.slices.begin(), r.slices.end(),
+                          [](const seg::LiverSliceReport& s) { return s.seed_window_widened; })
+                  ? "true"
+                  : "false");
         param("result.liver_value", fixed(r.seed.liver_value, 1));
         param("result.slices_segmented", std::to_string(r.slices.size()));
         param("result.slices_rejected", std::to_string(rejected));
@@ -382,6 +389,13 @@ Command add_liver(CLI::App& lseg)
                     "Level-set iteration bound on a propagated slice")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    cmd->add_option("--seed-window", o->params.seed_window_mm,
+                    "The seed slice's snake sees the seed's box widened by this [mm]")
+        ->capture_default_str()
+        ->check(CLI::Range(5.0, 500.0));
+    cmd->add_flag("--no-seed-window-widening", o->no_seed_window_widening,
+                  "Ablation: keep the seed slice's contour when it reaches its window's edge, instead of segmenting "
+                  "the seed slice again on the whole slice");
     cmd->add_option("--max-growth", o->params.max_growth_per_mm,
                     "Without a shape memory: how far the contour may move out between slices, per mm of slice gap")
         ->capture_default_str()

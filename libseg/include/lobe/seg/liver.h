@@ -34,6 +34,8 @@ struct LiverSliceReport {
     bool converged = false;
     bool leak_stopped = false;  //!< the snake's leak stop ended it (SnakeResult::leak_stopped)
     bool competition_used = false;
+    bool seed_window_widened = false; //!< the seed slice's contour reached its window's edge and
+                                  //!< was segmented again on the whole slice (LiverParams::seed_window_mm)
     bool rejected = false;      //!< the shape memory rejected the snake's contour
     bool recovered = false;     //!< ... and its clip to the memory's envelope was accepted
     double shape_score = 0;     //!< the memory's score (<= 1 plausible; 0 without a memory)
@@ -134,6 +136,9 @@ struct LiverParams {
     double window_growth_per_mm = 1.6; //!< (apart from the growth bound: the window's size sets
                                     //!< the edge thresholds, so it is kept as it was tuned)
     double seed_window_mm = 60.0;   //!< ... and the seed's box widened by this on the seed slice
+    bool widen_seed_window = true;  //!< a seed contour that reaches its window's edge is
+                                    //!< segmented again on the whole slice (on every phantom the
+                                    //!< window cut the left lobe; docs/algorithms/liver.md)
     int propagation_max_iterations = 200; //!< level-set bound on a propagated slice (the front
                                     //!< travels only erosion_mm + the growth bound)
     bool layer_holds_pressure = false; //!< on a propagated slice the snake's pressure acts only
