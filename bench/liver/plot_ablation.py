@@ -14,8 +14,8 @@ inputs = sorted({r["input"] for r in rows}, key=lambda s: [r["input"] for r in r
 variants = sorted({r["variant"] for r in rows}, key=lambda s: [r["variant"] for r in rows].index(s))
 markers = "os^vD<>Px*"
 # The default cycle's grey (its 8th colour) would read as the inputs' legend markers, drawn grey.
-colours = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"] if c != "#7f7f7f"] + ["#000080", "#8b4513", "#ff1493", "#00ced1", "#556b2f", "#b8860b", "#808000", "#4b0082", "#dc143c", "#2f4f4f"]
-fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
+colours = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"] if c != "#7f7f7f"] + ["#000080", "#8b4513", "#ff1493", "#00ced1", "#556b2f", "#b8860b", "#808000", "#4b0082", "#dc143c", "#2f4f4f", "#7fff00"]
+fig, axes = plt.subplots(1, 2, figsize=(15, 5.4))
 for ax, key, label in ((axes[0], "score", "SLIVER07 score (0-100; human 75)"), (axes[1], "dice", "Dice")):
     for vi, v in enumerate(variants):
         for ii, name in enumerate(inputs):
@@ -32,7 +32,7 @@ handles = [plt.Line2D([], [], linestyle="", marker="o", color=colours[i % len(co
            for i, v in enumerate(variants)]
 handles += [plt.Line2D([], [], linestyle="", marker=markers[i % len(markers)], color="#7f7f7f", label=n)
             for i, n in enumerate(inputs)]
-axes[1].legend(handles=handles, fontsize=8, loc="lower right")
+axes[1].legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
 fig.suptitle("lseg liver: each component switched off in turn (bench/liver/run.sh)")
 fig.tight_layout()
 fig.savefig(sys.argv[2], dpi=90)

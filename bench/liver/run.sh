@@ -53,6 +53,7 @@ variants=("full|--shape $work/shape.h5"
           "no dark rim|--shape $work/shape.h5 --no-dark-rim"
           "no surface lesions|--shape $work/shape.h5 --no-surface-lesions"
           "no wall margin|--shape $work/shape.h5 --no-wall-margin"
+          "no seed-window widening|--shape $work/shape.h5 --no-seed-window-widening"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"
