@@ -288,18 +288,22 @@ core::LabelImage3D filled(core::LabelImage3D m)
 
 //! The grey levels on the midline of the narrowest gap between `piece` and the kept pieces of `m`
 //! (`to_kept`: the distance to them): the pixels in neither (not in `m` or `dropped`), inside
-//! `inside`, whose larger distance to the two is at most two pixels more than the smallest such
-//! distance r; none if r exceeds limit_mm.
+//! `inside` or brighter than `bright` in `smoothed`, whose larger distance to the two is at most
+//! two pixels more than the smallest such distance r; none if r exceeds limit_mm. (A vein that
+//! reached the liver's surface on the previous slice lay in a notch of its contour, outside
+//! `inside`; the gap across it is still a gap within the liver.)
 std::vector<float> gap_midline(const cv::Mat& piece, const core::ImageF& to_kept, const core::LabelImage3D& inside,
                                const core::LabelImage3D& m, const core::LabelImage3D& dropped,
-                               const core::ImageF& smoothed, double limit_mm)
+                               const core::ImageF& smoothed, double limit_mm, double bright)
 {
     core::LabelImage3D piece_mask(m.geometry(), 0);
     for (std::size_t i = 0; i < piece_mask.data.size(); ++i)
         piece_mask.data[i] = piece.data[i] ? 1 : 0;
     const core::ImageF dp = euclidean_distance(piece_mask);
     const auto& dk = to_kept.data;
-    const auto candidate = [&](std::size_t i) { return inside.data[i] && !m.data[i] && !dropped.data[i]; };
+    const auto candidate = [&](std::size_t i) {
+        return (inside.data[i] || double(smoothed.data[i]) > bright) && !m.data[i] && !dropped.data[i];
+    };
     float r = std::numeric_limits<float>::infinity();
     for (std::size_t i = 0; i < dp.data.size(); ++i)
         if (candidate(i))
@@ -324,7 +328,7 @@ std::vector<float> gap_midline(const cv::Mat& piece, const core::ImageF& to_kept
 //! organ that took the liver's place meets it along a thin dark line (pericardium, capsule) or a
 //! plain step. A piece with no pixel within reach_mm of both (a wide vein between widened edge
 //! lines) is judged on the midline of its narrowest gap instead, if that lies within midline_mm of
-//! both. Such pieces go back into `m` (and out of `dropped`); returns their pixels.
+//! both (there the gap may also cross a vein open to the surface). Such pieces go back into `m` (and out of `dropped`); returns their pixels.
 std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D& dropped, const core::LabelImage3D& rim,
                                       const core::LabelImage3D& outline, const core::ImageF& smoothed, double hi,
                                       double reach_mm, double midline_mm)
@@ -358,7 +362,7 @@ std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D&
         if (between.empty() && midline_mm > reach_mm) {
             if (!to_kept)
                 to_kept = euclidean_distance(m);
-            between = gap_midline(piece, *to_kept, inside, m, dropped, smoothed, midline_mm);
+            between = gap_midline(piece, *to_kept, inside, m, dropped, smoothed, midline_mm, hi);
             rank = 3 * between.size() / 4;
         }
         if (between.empty())
