@@ -119,6 +119,22 @@ int vessel_cut_slices(const seg::LiverResult& r)
     return n;
 }
 
+// The vessel-cut midline (LiverParams::vessel_cut_midline_reach_mm) switched off and on with `p`:
+// it must keep pieces on more slices, win back more than `missed` truth voxels, `dice` and
+// `score`, and add at most `outside` voxels outside the truth.
+void expect_midline_gains(const Case& c, const seg::LiverParams& p, const std::string& what, double missed, double dice,
+                          double score, double outside = 3000.0)
+{
+    const OnOff r = on_and_off(c, p, [](seg::LiverParams& q) { q.vessel_cut_midline_reach_mm = 0.0; });
+    r.print(what + ": vessel-cut pieces on " + std::to_string(vessel_cut_slices(r.off)) + " -> " +
+            std::to_string(vessel_cut_slices(r.on)) + " slices");
+    EXPECT_GT(vessel_cut_slices(r.on), vessel_cut_slices(r.off));
+    EXPECT_LT(r.missed_on + missed, r.missed_off);
+    EXPECT_LT(r.outside_on, r.outside_off + outside);
+    EXPECT_GE(r.m_on.dice, r.m_off.dice + dice);
+    EXPECT_GE(r.score_on, r.score_off + score);
+}
+
 double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth_slice)
 {
     std::size_t in = 0, all = 0;
@@ -626,10 +642,11 @@ TEST(LiverPipeline, KidneyCarriedBesideTheTipIsDropped)
 // is small and only a seventh of its border lies on the rim, so it was dropped as an organ would
 // be; what separates it from the main piece is brighter than the liver (the vein), so it now
 // starts the snake. On this phantom (1.0 x 1.0 x 3 mm, seed 4; the rule and reach were set on
-// 0.8 x 0.8 x 2.5 mm, seed 13, liver.md) it acts on three slices. Measured (since the growth
-// bound's slack, 2026-12-07): truth voxels missed 20 648 -> 13 051, voxels outside the truth
-// 28 900 -> 31 057, Dice 0.9475 -> 0.9538, score 66.7 -> 68.7. Bounds: about half of each gain,
-// and at most 3 000 voxels more outside the truth (under half the voxels it wins back).
+// 0.8 x 0.8 x 2.5 mm, seed 13, liver.md) it acts on two slices. Measured (since the seed's
+// window, 2026-12-07): truth voxels missed 17 151 -> 13 165, voxels outside the truth 27 953 ->
+// 28 314, Dice 0.9523 -> 0.9564, score 69.4 -> 72.1 (with the 60 mm seed window, three slices,
+// 20 648 -> 13 051, 28 900 -> 31 057, 0.9475 -> 0.9538, 66.7 -> 68.7). Bounds: half of each
+// gain, and at most 3 000 voxels more outside the truth.
 TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
@@ -639,10 +656,10 @@ TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
         EXPECT_EQ(s.vessel_cut_mm2, 0.0);
     r.print("vessel-cut pieces on " + std::to_string(vessel_cut_slices(r.on)) + " slices");
     EXPECT_GE(vessel_cut_slices(r.on), 1);
-    EXPECT_LT(r.missed_on + 3800.0, r.missed_off);
+    EXPECT_LT(r.missed_on + 2000.0, r.missed_off);
     EXPECT_LT(r.outside_on, r.outside_off + 3000.0);
-    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0031);
-    EXPECT_GE(r.score_on, r.score_off + 1.0);
+    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0020);
+    EXPECT_GE(r.score_on, r.score_off + 1.3);
     p.vessel_cut_reach_mm = 0.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }
@@ -652,22 +669,16 @@ TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
 // slice 44 lies 8-10 mm from the main piece on either side of the vein and its widened edge lines,
 // so no pixel is within the 8 mm reach of both and the wedge was dropped; judged on the midline of
 // that gap (median 157 HU against a level of 113) it starts the snake, and the liver behind the
-// vein is kept on the slices above. Measured (with the growth bound's slack): truth voxels missed
-// 42 279 -> 32 784, voxels outside the truth 15 044 -> 17 075, Dice 0.9600 -> 0.9655, score 69.7
-// -> 75.4 (before the slack 42 359 -> 33 272, 15 119 -> 16 973, 69.6 -> 75.0). Bounds: half of
-// each gain, and at most 3 000 voxels more outside the truth.
+// vein is kept on the slices above. Measured (since the seed's window, 2026-12-07): truth voxels
+// missed 38 430 -> 27 235, voxels outside the truth 16 597 -> 19 588, Dice 0.9618 -> 0.9678, score
+// 71.8 -> 80.5 (with the 60 mm seed window 42 279 -> 32 784, 15 044 -> 17 075, 69.7 -> 75.4).
+// Bounds: half of each gain, and at most 5 000 voxels more outside the truth (under half the
+// voxels it wins back).
 TEST(LiverPipeline, PieceBehindAWideVeinStartsTheSnake)
 {
     const Case c = phantom_case({0.8, 0.8, 3.0}, 8);
     seg::LiverParams p;
-    const OnOff r = on_and_off(c, p, [](seg::LiverParams& q) { q.vessel_cut_midline_reach_mm = 0.0; });
-    r.print("wide vein: vessel-cut pieces on " + std::to_string(vessel_cut_slices(r.off)) + " -> " +
-            std::to_string(vessel_cut_slices(r.on)) + " slices");
-    EXPECT_GT(vessel_cut_slices(r.on), vessel_cut_slices(r.off));
-    EXPECT_LT(r.missed_on + 4500.0, r.missed_off);
-    EXPECT_LT(r.outside_on, r.outside_off + 3000.0);
-    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0026);
-    EXPECT_GE(r.score_on, r.score_off + 2.7);
+    expect_midline_gains(c, p, "wide vein", 5500.0, 0.0030, 4.3, 5000.0);
     p.vessel_cut_midline_reach_mm = -1.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }
@@ -719,12 +730,7 @@ TEST(LiverPipeline, WideVeinGapIsReadByItsBrightQuarter)
     const Case c = phantom_case({0.9, 0.9, 1.5}, 42);
     seg::LiverParams p;
     p.widen_seed_window = false;
-    const OnOff r = on_and_off(c, p, [](seg::LiverParams& q) { q.vessel_cut_midline_reach_mm = 0.0; });
-    r.print("wide vein, thin slices");
-    EXPECT_LT(r.missed_on + 8000.0, r.missed_off);
-    EXPECT_LT(r.outside_on, r.outside_off + 3000.0);
-    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0035);
-    EXPECT_GE(r.score_on, r.score_off + 3.5);
+    expect_midline_gains(c, p, "wide vein, thin slices", 8000.0, 0.0035, 3.5);
 }
 
 // The same phantom with the seed's window widened (the default): the propagation reaches slice 87
@@ -738,14 +744,7 @@ TEST(LiverPipeline, WideVeinGapIsReadByItsBrightQuarter)
 TEST(LiverPipeline, WedgeBehindAVeinOpenToTheSurfaceIsKept)
 {
     const Case c = phantom_case({0.9, 0.9, 1.5}, 42);
-    const OnOff r = on_and_off(c, seg::LiverParams{}, [](seg::LiverParams& q) { q.vessel_cut_midline_reach_mm = 0.0; });
-    r.print("vein open to the surface: vessel-cut pieces on " + std::to_string(vessel_cut_slices(r.off)) + " -> " +
-            std::to_string(vessel_cut_slices(r.on)) + " slices");
-    EXPECT_GT(vessel_cut_slices(r.on), vessel_cut_slices(r.off));
-    EXPECT_LT(r.missed_on + 8000.0, r.missed_off);
-    EXPECT_LT(r.outside_on, r.outside_off + 3000.0);
-    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0036);
-    EXPECT_GE(r.score_on, r.score_off + 2.9);
+    expect_midline_gains(c, seg::LiverParams{}, "vein open to the surface", 8000.0, 0.0036, 2.9);
 }
 
 // Vessel inlets (LiverParams::fill_vessel_inlets, SLIVER07 convention): the hepatic veins run to
