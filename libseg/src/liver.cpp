@@ -328,7 +328,8 @@ std::vector<float> gap_midline(const cv::Mat& piece, const core::ImageF& to_kept
 //! organ that took the liver's place meets it along a thin dark line (pericardium, capsule) or a
 //! plain step. A piece with no pixel within reach_mm of both (a wide vein between widened edge
 //! lines) is judged on the midline of its narrowest gap instead, if that lies within midline_mm of
-//! both (there the gap may also cross a vein open to the surface). Such pieces go back into `m` (and out of `dropped`); returns their pixels.
+//! both (there the gap may also cross a vein open to the surface). Such pieces go back into `m`
+//! (and out of `dropped`); returns their pixels.
 std::size_t restore_vessel_cut_pieces(core::LabelImage3D& m, core::LabelImage3D& dropped, const core::LabelImage3D& rim,
                                       const core::LabelImage3D& outline, const core::ImageF& smoothed, double hi,
                                       double reach_mm, double midline_mm)
@@ -819,27 +820,37 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
 
     // Only a window around the contour is modelled: the liver moves a few mm per slice, and
     // fields, edges and the level set cost in proportion to the pixels they cover.
-    const Window w0 = window_around(previous ? templ : init, previous ? p.window_growth_per_mm * c.hu.spacing[2] + p.window_margin_mm
-                                                                   : p.seed_window_mm);
+    Window w = window_around(previous ? templ : init,
+                             previous ? p.window_growth_per_mm * c.hu.spacing[2] + p.window_margin_mm : p.seed_window_mm);
     SnakeParams sp = p.snake;
     if (previous)
         sp.level_set.max_iterations = p.propagation_max_iterations;
-    const auto run_snake = [&](const Window& w) {
-        const core::LabelImage3D templ_w = previous ? crop(templ, w) : core::LabelImage3D();
-        const core::LabelImage3D region_w = region.data.empty() ? core::LabelImage3D() : crop(region, w);
-        return segment_snake(crop(img, w), crop(init, w), sp, previous ? &templ_w : nullptr,
+    const auto run_snake = [&](const Window& win) {
+        const core::LabelImage3D templ_w = previous ? crop(templ, win) : core::LabelImage3D();
+        const core::LabelImage3D region_w = region.data.empty() ? core::LabelImage3D() : crop(region, win);
+        return segment_snake(crop(img, win), crop(init, win), sp, previous ? &templ_w : nullptr,
                              region_w.data.empty() ? nullptr : &region_w);
     };
-    Window w = w0;
     SnakeResult r = run_snake(w);
     if (!previous && p.widen_seed_window && reaches_inner_edge(r.mask, w, g)) {
         // The seed's contour stopped at its window's edge, not at the liver's: the left lobe lies
         // far from a seed on the right (on every phantom it was cut there). Run again on the
         // whole slice; a contour that stopped inside its window keeps it, since the window's
         // size sets the snake's edge thresholds (docs/algorithms/liver.md).
-        w = Window{0, 0, g.size[0], g.size[1]};
-        r = run_snake(w);
-        out.report.seed_window_widened = true;
+        const Window whole{0, 0, g.size[0], g.size[1]};
+        SnakeResult wider = run_snake(whole);
+        // ... unless the whole slice's contour does not hold the window's: then the changed
+        // thresholds, not the window, decided it (a shaded MR's dim far side).
+        core::LabelImage3D in_window(g, 0);
+        paste(r.mask, w, in_window);
+        std::size_t held = 0;
+        for (std::size_t i = 0; i < in_window.data.size(); ++i)
+            held += in_window.data[i] && wider.mask.data[i];
+        if (double(held) >= p.seed_window_hold * double(count(in_window))) {
+            w = whole;
+            r = std::move(wider);
+            out.report.seed_window_widened = true;
+        }
     }
     out.mask = core::LabelImage3D(g, 0);
     paste(r.mask, w, out.mask);
@@ -1380,7 +1391,8 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
                   {"growth_slack_mm", params.growth_slack_mm},
                   {"window_growth_per_mm", params.window_growth_per_mm},
                   {"window_margin_mm", params.window_margin_mm},
-                  {"seed_window_mm", params.seed_window_mm}});
+                  {"seed_window_mm", params.seed_window_mm},
+                  {"seed_window_hold", params.seed_window_hold}});
     if (params.use_dome_contact)
         non_negative({{"contact_smoothing_mm", params.contact_smoothing_mm},
                       {"contact_sigmas", params.contact_sigmas},

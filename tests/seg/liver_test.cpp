@@ -325,9 +325,10 @@ TEST(LiverPipeline, PropagationFromAKnownSeed)
 // The dome contact (docs/algorithms/liver.md, "The dome contact") on a phantom that neither it
 // nor the pipeline was tuned on (1.0 x 1.0 x 2.5 mm, noise seed 11). Without it the propagation
 // takes the heart wall over the dome; with it the columns above the diaphragm's z-valley are
-// closed. Measured: 47 223 heart voxels (wall and blood) in the mask without, 5 889 with (-88 %);
-// Dice 0.910 -> 0.942 (before the edge snap, growing pieces and vessel inlets: 45 725 -> 7 197,
-// 0.885 -> 0.914). The bounds ask for half of each gain.
+// closed. Measured (2026-12-07, since the seed's window): 32 982 heart voxels (wall and blood) in
+// the mask without, 9 541 with (-71 %); Dice 0.939 -> 0.958 (with the 60 mm seed window 33 945 ->
+// 9 572, 0.936 -> 0.955; before the heart model 47 223 -> 5 889). The bounds ask for half of
+// each gain.
 TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
 {
     const Case c = phantom_case({1.0, 1.0, 2.5}, 11);
@@ -580,8 +581,10 @@ TEST(LiverPipeline, TwoThreadsGiveTheMaskOfOne)
 // piece of the contour that grows from one slice to the next is not liver. On this phantom (1.0 x
 // 1.0 x 3 mm, seed 4; the limit was chosen on others, liver.md) the rule acts on two slices and
 // the piece it drops at the lower one is the right kidney under the liver's tip, carried down
-// from there. Measured: voxels outside the truth 43 308 -> 36 339, right kidney 6 862 fewer,
-// Dice 0.935 -> 0.942 (57 970 -> 51 021, 6 857 and 0.921 -> 0.928 before the dark rim). Bounds: half of each gain.
+// from there. Measured (2026-12-07, since the seed's window): voxels outside the truth 38 293 ->
+// 28 314, right kidney 8 130 fewer, Dice 0.949 -> 0.956 (with the 60 mm seed window 37 602 ->
+// 31 057, 5 505 fewer, 0.948 -> 0.954; 43 308 -> 36 339 before the wall margin). Bounds: half of
+// each gain.
 TEST(LiverPipeline, GrowingPiecesAreDropped)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
@@ -752,10 +755,12 @@ TEST(LiverPipeline, WedgeBehindAVeinOpenToTheSurfaceIsKept)
 // out and the 3-D pass's hole filling cannot reach; the SLIVER07 truth counts them as liver. On
 // this phantom (0.8 x 0.8 x 2.5 mm, seed 13; the radius and level were not chosen on it): the
 // share of the hepatic veins in the mask, the IVC voxels (not liver) it takes, the maximum
-// surface distance, Dice and the SLIVER07 score. Measured: veins 0.52 -> 0.80, IVC 1 420 -> 2 638
-// voxels (5 % of it, the mouth of its groove), maximum distance 38.1 -> 26.3 mm, Dice 0.957 ->
-// 0.963, score 59.3 -> 70.3 (60.2 -> 71.4 with the surface lesions; the score: at least 62 and a
-// gain of 5, ten and half under). Bounds: half of each gain, and the IVC under a tenth.
+// surface distance, Dice and the SLIVER07 score. Measured (2026-12-07, since the seed's window):
+// veins 0.486 -> 0.855, IVC 4 414 -> 5 160 of its 52 000 voxels (the inlets add 1.4 % of it, the
+// mouth of its groove; the rest the propagation takes where the IVC meets the liver), maximum
+// distance 38.1 -> 22.5 mm, Dice 0.961 -> 0.968, score 62.7 -> 76.4 (with the 60 mm seed window:
+// veins 0.52 -> 0.82, IVC 1 436 -> 2 666, score 60.7 -> 72.3). Bounds: half of each gain, the
+// score at least 62, the IVC the inlets add under 5 % of it and all of it in the mask under 15 %.
 TEST(LiverPipeline, VesselInletsAreFilled)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
@@ -781,7 +786,8 @@ TEST(LiverPipeline, VesselInletsAreFilled)
               << seg::sliver_score(m_off).total << " -> " << seg::sliver_score(m_on).total << "\n";
     EXPECT_EQ(off.vessel_inlet_voxels, 0u);
     EXPECT_GT(veins_on_share, veins_off_share + 0.14);
-    EXPECT_LT(ivc_on_share, 0.1);
+    EXPECT_LT(ivc_on_share - ivc_off_share, 0.05);
+    EXPECT_LT(ivc_on_share, 0.15);
     EXPECT_LT(m_on.surface.maximum, m_off.surface.maximum - 5.0);
     EXPECT_GE(m_on.dice, m_off.dice + 0.003);
     EXPECT_GE(seg::sliver_score(m_on).total, 62.0);
@@ -906,11 +912,13 @@ TEST(LiverPipeline, TissueStopEndsAtTheLiversTip)
 // liver's grey levels, so the tissue stop ended the propagation three slices under the dome's
 // top. Its liver-grey core keeps 57 % of it (34 % of the widest slice's area): the contour goes on
 // as that core. On a phantom used for nothing else (1.6 x 1.6 x 5 mm, noise seed 6; the fractions
-// were set on the real scans and the 0.7-1.2 mm phantoms of liver.md). Measured: the mask's top
-// slice 30 -> 33 (truth 34), truth voxels missed 8 382 -> 3 182, voxels outside the truth 17 164
-// -> 19 053 (the heart wall and the diaphragm beside the recovered dome), Dice 0.888 -> 0.905,
-// score 39.0 -> 40.8. Bounds: the top within a slice of what was measured, half of each gain, at
-// most 4 000 voxels more outside.
+// were set on the real scans and the 0.7-1.2 mm phantoms of liver.md). Measured (2026-12-07,
+// since the seed's window): trimmed on 2 slices, the mask's top slice 28 -> 33 (truth 34), truth
+// voxels missed 15 789 -> 3 666, voxels outside the truth 9 085 -> 12 308 (the heart wall and the
+// diaphragm beside the recovered dome), Dice 0.882 -> 0.930, score 32.0 -> 57.2 (with the 60 mm
+// seed window: one slice, top 30 -> 33, missed 8 382 -> 3 182, outside 12 992 -> 14 876, score
+// 47.1 -> 49.3; the bounds below were set then and hold with room). Bounds: the top at least two
+// slices higher, about half of the older gains, at most 4 000 voxels more outside.
 TEST(LiverPipeline, TissueTrimKeepsTheDomeAtThickSlices)
 {
     const Case c = phantom_case({1.6, 1.6, 5.0}, 6);
@@ -952,9 +960,10 @@ TEST(LiverPipeline, TissueTrimKeepsTheDomeAtThickSlices)
 // The wall margin (1.2 x 1.2 x 5 mm, seed 17): at thick slices the contours take the subcostal
 // layer and the wall muscle between the liver and the ribs (65 and 50 HU against the liver's
 // 105, blurred into one another); dropping what lies within 6 mm inside the rib ring removes
-// most of it and no liver. Measured: subcostal layer in the mask 5 979 -> 1 955 voxels (wall
-// muscle and other soft tissue 4 333 -> 3 254), 5 446 voxels dropped of which 0 liver, Dice
-// 0.928 -> 0.941, score 57.3 -> 63.6. The phantom's subcostal layer is 6 mm thick by
+// most of it and no liver. Measured (2026-12-07, since the seed's window): subcostal layer in
+// the mask 4 475 -> 1 487 voxels (wall muscle and other soft tissue 3 240 -> 2 531), 3 957 voxels
+// dropped of which 0 liver, Dice 0.919 -> 0.928, score 54.7 -> 59.1 (with the 60 mm seed window
+// 5 979 -> 1 955, 4 333 -> 3 254, 5 446 dropped, 0.928 -> 0.941, 57.3 -> 63.6). The phantom's subcostal layer is 6 mm thick by
 // construction, so the bounds below are loose where they rest on the phantom (half the layer
 // gone, fewer than 2 % liver among the dropped voxels) and the gains are asserted at a third.
 TEST(LiverPipeline, WallMarginDropsTheLayerUnderTheRibs)
@@ -1058,6 +1067,37 @@ TEST(LiverPipeline, BiasFieldCorrectionRecoversAShadedMr)
     EXPECT_LE(std::abs(corrected.rvd), 8.0);
     EXPECT_GE(corrected.dice, 0.82);
     EXPECT_LE(std::abs(corrected.rvd), 0.5 * std::abs(plain.rvd));
+}
+
+// The seed slice's window is widened only when the whole slice's contour holds the window's
+// (LiverParams::seed_window_hold; LiverPipeline.SeedContourCutByItsWindowIsRedoneOnTheWholeSlice):
+// the snake's thresholds follow what its window takes in, and on a strongly shaded MR (the bias
+// field test's phantom, not corrected) the seed contour reaches its window's edge yet on the whole
+// slice stops at 67 cm2 instead of 168, the dim far side lost. Measured: always widening (hold 0)
+// Dice 0.675, RVD -46.3 %; with the hold rule the window's contour stands, Dice 0.843, RVD -21.1 %.
+// Bounds: no slice widened by default, one with hold 0, half the Dice gain.
+TEST(LiverPipeline, SeedWindowStandsWhereTheWholeSliceHoldsLess)
+{
+    const Case c = phantom_case({1.2, 1.2, 4.0}, 3);
+    const core::ImageF mr = t1_like(c.hu, 0.45);
+    seg::LiverParams p;
+    p.mr.bias_correction = false;
+    const seg::LiverResult kept = seg::segment_liver(mr, p);
+    p.seed_window_hold = 0.0;
+    const seg::LiverResult always = seg::segment_liver(mr, p);
+    const auto widened = [](const seg::LiverResult& x) {
+        return std::count_if(x.slices.begin(), x.slices.end(),
+                             [](const seg::LiverSliceReport& s) { return s.seed_window_widened; });
+    };
+    const auto m_kept = seg::evaluate_segmentation(kept.mask, c.truth);
+    const auto m_always = seg::evaluate_segmentation(always.mask, c.truth);
+    std::cerr << "shaded MR, seed window: always widened Dice " << m_always.dice << " RVD " << m_always.rvd
+              << " %, held Dice " << m_kept.dice << " RVD " << m_kept.rvd << " %\n";
+    EXPECT_EQ(widened(kept), 0);
+    EXPECT_EQ(widened(always), 1);
+    EXPECT_GE(m_kept.dice, m_always.dice + 0.084);
+    p.seed_window_hold = -0.5;
+    EXPECT_THROW(seg::segment_liver(mr, p), core::InvalidInputError);
 }
 
 // Auto's rule on what it will meet: a CT has air (below -500 HU) outside the body and in the

@@ -139,6 +139,8 @@ struct LiverParams {
     bool widen_seed_window = true;  //!< a seed contour that reaches its window's edge is
                                     //!< segmented again on the whole slice (on every phantom the
                                     //!< window cut the left lobe; docs/algorithms/liver.md)
+    double seed_window_hold = 0.9;  //!< ... kept only if it holds this share of the window's
+                                    //!< contour (else the window's stands)
     int propagation_max_iterations = 200; //!< level-set bound on a propagated slice (the front
                                     //!< travels only erosion_mm + the growth bound)
     bool layer_holds_pressure = false; //!< on a propagated slice the snake's pressure acts only
