@@ -355,6 +355,9 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
         throw core::InvalidInputError("segment_snake: the region mask is not on the image's grid");
     if (params.aoi_width_mm <= 0 || !std::isfinite(params.aoi_width_mm))
         throw core::InvalidInputError("segment_snake: aoi_width_mm must be positive");
+    if (params.repeat_keep_voxels < -1)
+        throw core::InvalidInputError("segment_snake: repeat_keep_voxels must be -1 (off) or non-negative, got " +
+                                      std::to_string(params.repeat_keep_voxels));
 
     const auto t0 = Clock::now();
     const core::ImageF phi0 = initial_level_set(init); // throws for an empty or full mask
@@ -383,11 +386,28 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
         fraction_outside(run.ls.mask, ctx.aoi) > params.aoi_leave_fraction) {
         // The one-repeat rule (thesis L3285-3295): the contour left the AOI, so the edges there
         // were too weak to hold it; weight the edges outside the AOI down and segment once more.
+        Run first = std::move(run);
         run = run_once(ctx, kCompetitionOn);
         out.competition_used = true;
         out.runs = 2;
         out.field_seconds += run.field_seconds;
         out.evolve_seconds += run.evolve_seconds;
+        if (params.repeat_keep_voxels >= 0) {
+            // The repeat only cuts the first run where that left the AOI; elsewhere the first
+            // run's edge stands. The repeat stops a voxel or more inside it: lifted and clipped,
+            // an edge becomes a plateau with a ridge on its inner side, and the interior's weak
+            // edges in the AOI are lifted too (docs/algorithms/liver.md, "What the repeat keeps").
+            const auto t2 = Clock::now();
+            const core::Image3D<std::int32_t> d = chessboard_distance(run.ls.mask);
+            for (std::size_t i = 0; i < d.data.size(); ++i)
+                run.ls.mask.data[i] =
+                    first.ls.mask.data[i] && d.data[i] >= 0 && d.data[i] <= params.repeat_keep_voxels ? 1 : 0;
+            const auto inside = std::count_if(run.ls.mask.data.begin(), run.ls.mask.data.end(),
+                                              [](std::uint8_t v) { return v != 0; });
+            if (inside > 0 && std::size_t(inside) < run.ls.mask.data.size()) // else no boundary to measure from
+                run.ls.phi = initial_level_set(run.ls.mask);
+            out.field_seconds += seconds_since(t2);
+        }
     }
     out.mask = std::move(run.ls.mask);
     out.phi = std::move(run.ls.phi);

@@ -649,11 +649,15 @@ TEST(LiverPipeline, KidneyCarriedBesideTheTipIsDropped)
 // window, 2026-12-07): truth voxels missed 17 151 -> 13 165, voxels outside the truth 27 953 ->
 // 28 314, Dice 0.9523 -> 0.9564, score 69.4 -> 72.1 (with the 60 mm seed window, three slices,
 // 20 648 -> 13 051, 28 900 -> 31 057, 0.9475 -> 0.9538, 66.7 -> 68.7). Bounds: half of each
-// gain, and at most 3 000 voxels more outside the truth.
+// gain, and at most 3 000 voxels more outside the truth. Run with energy competition's repeat as
+// the thesis has it (SnakeParams::repeat_keep_voxels -1): with the repeat trimmed to the first
+// run (the default) the contour keeps the wedge on this phantom by itself, and the rule has
+// nothing left to win (on and off 72.4).
 TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
     seg::LiverParams p;
+    p.snake.repeat_keep_voxels = -1;
     const OnOff r = on_and_off(c, p, [](seg::LiverParams& q) { q.keep_vessel_cut_pieces = false; });
     for (const auto& s : r.off.slices)
         EXPECT_EQ(s.vessel_cut_mm2, 0.0);
@@ -676,11 +680,13 @@ TEST(LiverPipeline, PieceCutOffByAVeinStartsTheSnake)
 // missed 38 430 -> 27 235, voxels outside the truth 16 597 -> 19 588, Dice 0.9618 -> 0.9678, score
 // 71.8 -> 80.5 (with the 60 mm seed window 42 279 -> 32 784, 15 044 -> 17 075, 69.7 -> 75.4).
 // Bounds: half of each gain, and at most 5 000 voxels more outside the truth (under half the
-// voxels it wins back).
+// voxels it wins back). Run with the thesis's repeat (repeat_keep_voxels -1): with the trimmed
+// repeat (the default) the wedge is never cut off on this phantom (score 85.1 on and off).
 TEST(LiverPipeline, PieceBehindAWideVeinStartsTheSnake)
 {
     const Case c = phantom_case({0.8, 0.8, 3.0}, 8);
     seg::LiverParams p;
+    p.snake.repeat_keep_voxels = -1;
     expect_midline_gains(c, p, "wide vein", 5500.0, 0.0030, 4.3, 5000.0);
     p.vessel_cut_midline_reach_mm = -1.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
@@ -693,8 +699,10 @@ TEST(LiverPipeline, PieceBehindAWideVeinStartsTheSnake)
 // used for nothing else here (0.65 x 0.65 x 3 mm, seed 34). Measured: truth pixels missed on the
 // seed slice 774 -> 273, truth voxels missed 68 774 -> 50 963, outside the truth 9 453 -> 16 531 (the
 // lobe's partial-volume rim at the dome, where the dark rim step trims less), Dice 0.9637 ->
-// 0.9690, score 70.3 -> 78.7. Bounds: the seed slice's misses halved, half of each gain, the
-// outside no more than 10 000 voxels up. A contour that stops inside its window keeps it
+// 0.9690, score 70.3 -> 78.7; since energy competition's repeat is trimmed to the first run
+// (2026-12-07) missed 40 005 -> 34 229, outside 15 363 -> 16 244, Dice 0.9747 -> 0.9770, score
+// 80.1 -> 84.0. Bounds: the seed slice's misses halved, half of each gain, the outside no more
+// than 10 000 voxels up. A contour that stops inside its window keeps it
 // (LiverPipeline.T1LikePhantomIsSegmentedAsMr: the leak stop ends it there).
 TEST(LiverPipeline, SeedContourCutByItsWindowIsRedoneOnTheWholeSlice)
 {
@@ -713,10 +721,10 @@ TEST(LiverPipeline, SeedContourCutByItsWindowIsRedoneOnTheWholeSlice)
     EXPECT_EQ(widened(r.on), 1);
     EXPECT_EQ(widened(r.off), 0);
     EXPECT_LE(seed_missed(r.on), 0.5 * seed_missed(r.off));
-    EXPECT_LT(r.missed_on + 8900.0, r.missed_off);
+    EXPECT_LT(r.missed_on + 2800.0, r.missed_off);
     EXPECT_LT(r.outside_on, r.outside_off + 10000.0);
-    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0026);
-    EXPECT_GE(r.score_on, r.score_off + 4.2);
+    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0011);
+    EXPECT_GE(r.score_on, r.score_off + 1.9);
 }
 
 // The same on a phantom with thin slices (0.9 x 0.9 x 1.5 mm, seed 42): the wedge behind the vein
@@ -809,7 +817,10 @@ TEST(LiverPipeline, VesselInletsAreFilled)
 // SLIVER07 score 70.3 -> 71.4; the final masks differ by 2 013 voxels, 2 012 of them liver (the
 // rest partial volume at the tumour's edge). Bounds: at least 1 000 more of the tumour's voxels, at
 // least 90 % of the difference on the liver {1..4}, the score not lower; a parenchyma-convention
-// run adds nothing.
+// run adds nothing. Run with energy competition's repeat as the thesis has it (repeat_keep_voxels
+// -1), where these figures were measured: with the trimmed repeat (the default) the lesion fill
+// still takes the tumour (1 776 -> 3 658 voxels, score 79.8 -> 80.0), but the two runs part
+// further up too, and only 3 297 of the 4 947 voxels they differ by are liver.
 TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
@@ -829,6 +840,7 @@ TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
         return n;
     };
     seg::LiverParams p;
+    p.snake.repeat_keep_voxels = -1;
     const seg::LiverResult on = seg::segment_liver(c.hu, p);
     p.fill_surface_lesions = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);
@@ -870,13 +882,18 @@ TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
 // the test is of the stop alone. The tissue trim (on) must not carry the contour on: at slice 11
 // the contour's liver-grey core (the kidney, 112 HU, and the tip's sliver) keeps 58 % of it but
 // covers only 8 % of the widest slice, under the trim's 10 %; with that bound at 0 the trim keeps
-// it and the kidney is followed to slice 0 (the failure the bound removes).
+// it and the kidney is followed to slice 0 (the failure the bound removes). Run with energy
+// competition's repeat as the thesis has it (SnakeParams::repeat_keep_voxels -1): with the repeat
+// trimmed to the first run (the default) slice 11's contour holds less fat (under the stop's 35 %)
+// and, without the growing-pieces rule, the kidney is followed down; with that rule (the
+// default) the run still ends at slice 12 (liver.md, "What the repeat keeps").
 TEST(LiverPipeline, TissueStopEndsAtTheLiversTip)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
     const int first = lowest_slice(c.truth);
     seg::LiverParams p;
     p.drop_growing_pieces = false;
+    p.snake.repeat_keep_voxels = -1;
     const seg::LiverResult r = seg::segment_liver(c.hu, p);
     p.use_tissue_stop = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);

@@ -33,7 +33,7 @@ struct LiverOptions {
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
          no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
          no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false, no_wall_margin = false,
-         no_seed_window_widening = false;
+         no_seed_window_widening = false, no_repeat_trim = false;
     seg::LiverParams params;
 };
 
@@ -122,6 +122,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
     p.mr.bias_correction = o.bias_field;
     if (o.no_competition)
         p.snake.competition = seg::CompetitionMode::Off;
+    if (o.no_repeat_trim)
+        p.snake.repeat_keep_voxels = -1;
     p.post.convention =
         o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
     p.modality = o.modality == "ct" ? seg::Modality::Ct : o.modality == "mr" ? seg::Modality::Mr : seg::Modality::Auto;
@@ -235,7 +237,9 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                                                                                                  : "") +
                 (p.use_3d_pass ? "3d-pass " : "") +
                 (p.use_rib_cage && ct && p.wall_margin_mm > 0 ? "wall-margin " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
-                (p.snake.competition != seg::CompetitionMode::Off ? "competition" : ""));
+                (p.snake.competition == seg::CompetitionMode::Off ? ""
+                 : p.snake.repeat_keep_voxels >= 0                ? "competition repeat-trim"
+                                                                  : "competition"));
         h5.write_labels("liver", r.mask, {{1, "liver"}});
         h5.write_labels("liver_slices", r.stacked, {{1, "liver (slice by slice, before the 3-D pass)"}});
         h5.write_provenance(prov);
@@ -290,6 +294,9 @@ Command add_liver(CLI::App& lseg)
                   "brighter on one side (docs/algorithms/bias_field.md)");
     cmd->add_flag("--no-start-slice", o->no_start_slice, "Ablation: no rotating-template start slice");
     cmd->add_flag("--no-competition", o->no_competition, "Ablation: no energy competition between slices");
+    cmd->add_flag("--no-repeat-trim", o->no_repeat_trim,
+                  "Ablation: energy competition's repeat replaces the first run's contour (the thesis's rule) "
+                  "instead of only cutting where that left the previous slice's band");
     cmd->add_flag("--no-kmeans", o->no_kmeans,
                   "Ablation: a fixed band around the seed's grey level, not K-means layers");
     cmd->add_flag("--no-rib-cage", o->no_rib_cage, "Ablation: no rib cage ring");

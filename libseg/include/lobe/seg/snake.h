@@ -69,12 +69,19 @@ struct SnakeParams {
     double aoi_width_mm = 6.0;      //!< AOI: voxels within this distance of the template's boundary
     double aoi_leave_fraction = 0.05; //!< Auto: repeat when more than this fraction of the result's
                                     //!< boundary lies outside the AOI
+    //! Auto: what the repeat keeps of the first run. The repeat lifts every edge in the AOI, the
+    //! liver's interior ones too, and stops a pixel or more inside the first run's edge all round;
+    //! it is trusted only to cut the first run's leak: the result is the first run's mask within
+    //! this many voxels (chessboard distance) of the repeat's. -1: the repeat's mask as it is
+    //! (the thesis's rule). docs/algorithms/liver.md, "What the repeat keeps".
+    int repeat_keep_voxels = 1;
 };
 
 //! What `segment_snake` returns.
 struct SnakeResult {
     core::LabelImage3D mask;    //!< 1 inside the final contour
-    core::ImageF phi;           //!< the final level set
+    core::ImageF phi;           //!< the final level set (after a trimmed repeat: the signed distance
+                                //!< to the trimmed mask)
     int iterations = 0;         //!< level-set iterations (of the last run when competition repeated)
     int reinitialisations = 0;  //!< ... and re-initialisations of φ among them
     bool converged = false;
