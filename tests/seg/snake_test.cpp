@@ -329,19 +329,29 @@ TEST(Snake, TopologyMergesAndSplits)
 // the binary-edge threshold: 6/160 < 0.05), everything else strong. Without competition CDSG
 // pours into the neighbour; with the previous slice's contour as template the Auto rule sees
 // the result leave the AOI, switches G = 0.3 on and repeats once, and the contact holds.
-TEST(Snake, WeakContactNeedsEnergyCompetition)
+struct WeakContact {
+    core::ImageF img;
+    core::LabelImage3D truth, templ, init;
+};
+
+WeakContact weak_contact()
 {
     const auto g = grid2d(128);
-    core::ImageF img(g, -100.f); // fat
+    WeakContact w{core::ImageF(g, -100.f), {}, {}, {}}; // fat
     const auto liver = box(16, 70, 30, 98);
-    const auto heart = box(71, 112, 40, 88);
-    paint<float>(img, heart, 66.f);
-    paint<float>(img, liver, 60.f);
-    add_noise(img, 1.0, 5);
-    const auto truth = mask_of(g, liver);
+    paint<float>(w.img, box(71, 112, 40, 88), 66.f); // the heart
+    paint<float>(w.img, liver, 60.f);
+    add_noise(w.img, 1.0, 5);
+    w.truth = mask_of(g, liver);
     // The previous slice: the same organ 2 px smaller on every side.
-    const auto templ = mask_of(g, box(18, 68, 32, 96));
-    const auto init = mask_of(g, disc(40, 64, 8));
+    w.templ = mask_of(g, box(18, 68, 32, 96));
+    w.init = mask_of(g, disc(40, 64, 8));
+    return w;
+}
+
+TEST(Snake, WeakContactNeedsEnergyCompetition)
+{
+    const auto [img, truth, templ, init] = weak_contact();
 
     seg::SnakeParams off;
     off.competition = seg::CompetitionMode::Off;
@@ -369,16 +379,8 @@ TEST(Snake, WeakContactNeedsEnergyCompetition)
 // voxel's width along the 49-voxel contact is 0.8 % of the object, plus noise).
 TEST(Snake, RepeatCutsTheLeakAndKeepsTheFirstRunsEdge)
 {
-    const auto g = grid2d(128);
-    core::ImageF img(g, -100.f);
-    const auto liver = box(16, 70, 30, 98);
-    paint<float>(img, box(71, 112, 40, 88), 66.f);
-    paint<float>(img, liver, 60.f);
-    add_noise(img, 1.0, 5);
-    const auto truth = mask_of(g, liver);
-    const auto templ = mask_of(g, box(18, 68, 32, 96));
-    const auto init = mask_of(g, disc(40, 64, 8));
-    const auto ring = mask_of(g, [](double x, double y, double) {
+    const auto [img, truth, templ, init] = weak_contact();
+    const auto ring = mask_of(img.geometry(), [](double x, double y, double) {
         return x >= 16 && x <= 70 && y >= 30 && y <= 98 && !(x >= 17 && x <= 69 && y >= 31 && y <= 97);
     });
     seg::SnakeParams thesis;
@@ -407,19 +409,12 @@ TEST(Snake, RepeatCutsTheLeakAndKeepsTheFirstRunsEdge)
 // level set converges instead of crawling into the neighbour until the iteration bound.
 TEST(Snake, RegionHoldsThePressureAtAWeakContact)
 {
-    const auto g = grid2d(128);
-    core::ImageF img(g, -100.f);
-    const auto liver = box(16, 70, 30, 98);
-    paint<float>(img, box(71, 112, 40, 88), 66.f);
-    paint<float>(img, liver, 60.f);
-    add_noise(img, 1.0, 5);
-    const auto truth = mask_of(g, liver);
-    const auto init = mask_of(g, disc(40, 64, 8));
+    const auto [img, truth, templ, init] = weak_contact();
     seg::SnakeParams p;
     p.competition = seg::CompetitionMode::Off;
     // The region: pixels within 3 HU of the object's grey level (3 sigma of the noise: 0.3 % of
     // the object's pixels fall out, isolated, and curvature closes over them).
-    core::LabelImage3D region(g, 0);
+    core::LabelImage3D region(img.geometry(), 0);
     for (std::size_t i = 0; i < img.data.size(); ++i)
         region.data[i] = std::abs(img.data[i] - 60.f) <= 3.f;
     const auto loose = run(SnakeMethod::Cdsg, img, init, p);
