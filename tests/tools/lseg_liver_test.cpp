@@ -112,6 +112,7 @@ TEST(LsegLiver, SegmentsAPhantomAndRecordsWhatItDid)
     EXPECT_NE(parameter(prov.back(), "components").find("piece-growth"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("vessel-inlets"), std::string::npos);
     EXPECT_NE(parameter(prov.back(), "components").find("dark-rim"), std::string::npos);
+    EXPECT_NE(parameter(prov.back(), "components").find("competition repeat-trim"), std::string::npos);
     EXPECT_FALSE(parameter(prov.back(), "result.dark_rim_voxels").empty());
     // The phantom's CT has a contrast-filled heart under its start slice: the heart model is built.
     EXPECT_NE(parameter(prov.back(), "components").find("heart-model"), std::string::npos);
