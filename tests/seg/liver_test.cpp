@@ -152,6 +152,8 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 // Measured: Dice 0.907, ASD 2.7 mm, RVD +10.2 %, SLIVER07 score 40.3 (the same before the surface lesions; 29.0 before the heart model; 0.876, +17.6 % and
 // 19.2 with the first form of the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap, growing pieces and vessel inlets; the kidney under the
 // liver leaks in; the heart above the dome did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
+// Since energy competition's repeat is trimmed (2026-12-07, later): Dice 0.932, ASD 1.87 mm, RVD
+// 9.0 %, score 53.8.
 TEST(LiverPipeline, CoarsePhantomIsFound)
 {
     const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
@@ -282,6 +284,8 @@ TEST(LiverPipeline, ACoronalStackGivesTheSameLiver)
 // 0.9 x 0.9 x 3 mm, noise seed 5. Measured: Dice 0.952, ASD 1.4 mm, SLIVER07 score 69.9 (0.908
 // and 3.9 mm before the edge snap, growing pieces and vessel inlets; 0.875 and 4.9 mm before the
 // dome contact). The score's bound is ten points under the measured one (see the test above).
+// Since energy competition's repeat is trimmed (2026-12-07, later): Dice 0.966, ASD 1.02 mm, RVD
+// 3.3 %, score 72.3.
 TEST(LiverPipeline, FinePhantomIsFound)
 {
     const Case c = phantom_case({0.9, 0.9, 3.0}, 5);
@@ -302,6 +306,7 @@ TEST(LiverPipeline, FinePhantomIsFound)
 // slice-by-slice driver achieves when the seed is right (no heart is known, so no dome contact
 // is sought). Measured: Dice 0.88 (0.81 before the edge snap, growing pieces and vessel inlets;
 // no rib cage, no start slice: the heart and kidney leaks are larger than in the whole pipeline).
+// Since energy competition's repeat is trimmed (2026-12-07, later): Dice 0.852.
 TEST(LiverPipeline, PropagationFromAKnownSeed)
 {
     const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
@@ -329,6 +334,8 @@ TEST(LiverPipeline, PropagationFromAKnownSeed)
 // the mask without, 9 541 with (-71 %); Dice 0.939 -> 0.958 (with the 60 mm seed window 33 945 ->
 // 9 572, 0.936 -> 0.955; before the heart model 47 223 -> 5 889). The bounds ask for half of
 // each gain.
+// Since energy competition's repeat is trimmed (2026-12-07, later): heart voxels 63 737 -> 14 638,
+// Dice 0.9216 -> 0.9615.
 TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
 {
     const Case c = phantom_case({1.0, 1.0, 2.5}, 11);
@@ -367,6 +374,8 @@ TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
 // seed 54) and a shape memory trained on two coarse phantoms, as `lseg train` builds it; the
 // minimum was chosen on a sweep of 21 phantoms (liver.md). Measured, 300 -> 150 mm²: heart voxels
 // 35 752 -> 4 322, SLIVER07 score 68.2 -> 85.2. Bounds: half the heart voxels, half the score's gain.
+// Since energy competition's repeat is trimmed (2026-12-07, later): heart voxels 48 788 -> 4 029,
+// score 63.9 -> 87.3.
 TEST(LiverPipeline, BrokenDomeContactRingStillCounts)
 {
     const Case a = phantom_case({1.4, 1.4, 5.0}, 3), b = phantom_case({2.0, 2.0, 2.5}, 4);
@@ -397,6 +406,8 @@ TEST(LiverPipeline, BrokenDomeContactRingStillCounts)
 // slice is kept with 3 052 voxels of heart). Before the seed slice's window was widened
 // (2026-12-07) the model missed no more liver (9 310 -> 7 526). Bounds: two thirds of the heart
 // voxels, half the Dice gain, at most 2 500 more liver voxels missed (that slice).
+// Since energy competition's repeat is trimmed (2026-12-07, later): heart in the mask 17 813 -> 5
+// 865, Dice 0.9127 -> 0.9398, liver missed 6 065 -> 6 373.
 TEST(LiverPipeline, HeartModelKeepsTheHeartOutAtThickSlices)
 {
     const Case c = phantom_case({1.2, 1.2, 5.0}, 17);
@@ -512,6 +523,8 @@ TEST(LiverPipeline, NoLiverBelowTheLiver)
 // false voxels, first slice 8 against the truth's 12); measured after: first slice 13, no voxel
 // below the tip, Dice 0.908 (now first slice 14 and Dice 0.963, with the edge snap, growing
 // pieces, vessel inlets and dark rim). The bound allows one slice of partial volume at the tip.
+// Since energy competition's repeat is trimmed (2026-12-07, later): first slice 13 (truth 12), Dice
+// 0.972.
 TEST(LiverPipeline, StopsAtTheLiversTip)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
@@ -530,6 +543,8 @@ TEST(LiverPipeline, StopsAtTheLiversTip)
 // mask voxel), and Dice and ASD. Measured: missed rim 2.4 % -> 1.3 %, Dice 0.950 -> 0.961, ASD 1.83
 // -> 1.63 mm (with the vessel inlets and the dark rim; before them 2.9 % -> 1.9 %, 0.933 -> 0.944, 3.08 -> 2.94 mm).
 // Bounds: the rim down by a quarter, about half the Dice gain, ASD not worse.
+// Since energy competition's repeat is trimmed (2026-12-07, later): missed rim 2.10 % -> 1.10 %,
+// Dice 0.9640 -> 0.9718, ASD 1.05 -> 0.91 mm.
 TEST(LiverPipeline, EdgeSnapTakesTheMissedRim)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
@@ -585,6 +600,8 @@ TEST(LiverPipeline, TwoThreadsGiveTheMaskOfOne)
 // 28 314, right kidney 8 130 fewer, Dice 0.949 -> 0.956 (with the 60 mm seed window 37 602 ->
 // 31 057, 5 505 fewer, 0.948 -> 0.954; 43 308 -> 36 339 before the wall margin). Bounds: half of
 // each gain.
+// Since energy competition's repeat is trimmed (2026-12-07, later): outside the truth 50 855 -> 27
+// 428 (right kidney 29 218 -> 6 235), Dice 0.9392 -> 0.9614, on 4 slices.
 TEST(LiverPipeline, GrowingPiecesAreDropped)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
@@ -619,6 +636,8 @@ TEST(LiverPipeline, GrowingPiecesAreDropped)
 // the liver beside it shrank. On this phantom (1.0 x 1.0 x 2.5 mm, seed 11; the limit was not
 // chosen on it, liver.md) the lineage rule drops it. Measured: right kidney 15 041 -> 6 796 voxels, Dice
 // 0.943 -> 0.950, SLIVER07 score 58.0 -> 68.1. Bounds: half of each gain.
+// Since energy competition's repeat is trimmed (2026-12-07, later): right kidney 28 217 -> 6 424,
+// Dice 0.9492 -> 0.9675, score 41.2 -> 76.7.
 TEST(LiverPipeline, KidneyCarriedBesideTheTipIsDropped)
 {
     const Case c = phantom_case({1.0, 1.0, 2.5}, 11);
@@ -736,6 +755,9 @@ TEST(LiverPipeline, SeedContourCutByItsWindowIsRedoneOnTheWholeSlice)
 // outside the truth. Run with the seed slice's window as it was (widen_seed_window off): on the
 // whole seed slice the propagation reaches slice 88 differently, the wedge is lost before the
 // piece rule sees it (liver.md, "The seed's window"), and this rule has nothing to act on.
+// Since energy competition's repeat is trimmed (2026-12-07, later): vessel-cut pieces on 1 -> 2
+// slices, missed 46 264 -> 34 373, outside 26 513 -> 27 073, Dice 0.9682 -> 0.9733, score 75.1 ->
+// 81.0.
 TEST(LiverPipeline, WideVeinGapIsReadByItsBrightQuarter)
 {
     const Case c = phantom_case({0.9, 0.9, 1.5}, 42);
@@ -752,6 +774,9 @@ TEST(LiverPipeline, WideVeinGapIsReadByItsBrightQuarter)
 // on): vessel-cut pieces kept on 2 -> 3 slices, truth voxels missed 40 561 -> 24 092, outside the
 // truth 30 876 -> 31 029, Dice 0.9689 -> 0.9762, score 76.2 -> 82.1 (before this change on and off
 // were the same: 76.2). Bounds: half of each gain, at most 3 000 voxels more outside the truth.
+// Since energy competition's repeat is trimmed (2026-12-07, later): vessel-cut pieces on 1 -> 2
+// slices, missed 39 078 -> 23 684, outside 26 783 -> 27 822, Dice 0.9713 -> 0.9777, score 77.2 ->
+// 83.4.
 TEST(LiverPipeline, WedgeBehindAVeinOpenToTheSurfaceIsKept)
 {
     const Case c = phantom_case({0.9, 0.9, 1.5}, 42);
@@ -769,6 +794,9 @@ TEST(LiverPipeline, WedgeBehindAVeinOpenToTheSurfaceIsKept)
 // distance 38.1 -> 22.5 mm, Dice 0.961 -> 0.968, score 62.7 -> 76.4 (with the 60 mm seed window:
 // veins 0.52 -> 0.82, IVC 1 436 -> 2 666, score 60.7 -> 72.3). Bounds: half of each gain, the
 // score at least 62, the IVC the inlets add under 5 % of it and all of it in the mask under 15 %.
+// Since energy competition's repeat is trimmed (2026-12-07, later): veins 0.556 -> 0.952, IVC 1 045
+// -> 1 861 voxels (3.6 %), maximum distance 38.1 -> 19.5 mm, Dice 0.966 -> 0.972, score 68.3 ->
+// 80.0.
 TEST(LiverPipeline, VesselInletsAreFilled)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
@@ -936,6 +964,9 @@ TEST(LiverPipeline, TissueStopEndsAtTheLiversTip)
 // seed window: one slice, top 30 -> 33, missed 8 382 -> 3 182, outside 12 992 -> 14 876, score
 // 47.1 -> 49.3; the bounds below were set then and hold with room). Bounds: the top at least two
 // slices higher, about half of the older gains, at most 4 000 voxels more outside.
+// Since energy competition's repeat is trimmed (2026-12-07, later): one slice trimmed, top slice 31
+// -> 33, missed 5 188 -> 2 557, outside 12 317 -> 13 022, Dice 0.9224 -> 0.9319, score 55.0 ->
+// 56.6.
 TEST(LiverPipeline, TissueTrimKeepsTheDomeAtThickSlices)
 {
     const Case c = phantom_case({1.6, 1.6, 5.0}, 6);
@@ -983,6 +1014,9 @@ TEST(LiverPipeline, TissueTrimKeepsTheDomeAtThickSlices)
 // 5 979 -> 1 955, 4 333 -> 3 254, 5 446 dropped, 0.928 -> 0.941, 57.3 -> 63.6). The phantom's subcostal layer is 6 mm thick by
 // construction, so the bounds below are loose where they rest on the phantom (half the layer
 // gone, fewer than 2 % liver among the dropped voxels) and the gains are asserted at a third.
+// Since energy competition's repeat is trimmed (2026-12-07, later): subcostal layer 3 117 -> 965,
+// other soft tissue 3 013 -> 2 542, 2 874 voxels dropped (0 liver), Dice 0.9331 -> 0.9398, score
+// 57.9 -> 61.1.
 TEST(LiverPipeline, WallMarginDropsTheLayerUnderTheRibs)
 {
     const Case c = phantom_case({1.2, 1.2, 5.0}, 17);
@@ -1066,6 +1100,8 @@ core::ImageF t1_like(const core::ImageF& hu, double shading = 0.15)
 // 0.59..1.39 (before the edge snap and growing pieces: -17.6 %, 0.815 and +0.9 %, 0.847; before
 // the tissue stop: +4.7 %, 0.833). Bounds: |RVD| under 8 % and Dice 0.82 with it, and the correction
 // at least halving |RVD|.
+// Since the seed window's hold rule (2026-12-07): without the correction the window's contour
+// stands: RVD -13.1 % -> 5.0 %, Dice 0.852 -> 0.854.
 TEST(LiverPipeline, BiasFieldCorrectionRecoversAShadedMr)
 {
     const Case c = phantom_case({1.2, 1.2, 4.0}, 3);
@@ -1093,6 +1129,8 @@ TEST(LiverPipeline, BiasFieldCorrectionRecoversAShadedMr)
 // slice stops at 67 cm2 instead of 168, the dim far side lost. Measured: always widening (hold 0)
 // Dice 0.675, RVD -46.3 %; with the hold rule the window's contour stands, Dice 0.843, RVD -21.1 %.
 // Bounds: no slice widened by default, one with hold 0, half the Dice gain.
+// Since energy competition's repeat is trimmed (2026-12-07, later): always widened Dice 0.759 (RVD
+// -30.4 %), held 0.852 (-13.1 %).
 TEST(LiverPipeline, SeedWindowStandsWhereTheWholeSliceHoldsLess)
 {
     const Case c = phantom_case({1.2, 1.2, 4.0}, 3);
