@@ -396,7 +396,7 @@ SnakeResult segment_snake(const core::ImageF& image, const core::LabelImage3D& i
             // The repeat only cuts the first run where that left the AOI; elsewhere the first
             // run's edge stands. The repeat stops a voxel or more inside it: lifted and clipped,
             // an edge becomes a plateau with a ridge on its inner side, and the interior's weak
-            // edges in the AOI are lifted too (docs/algorithms/liver.md, "What the repeat keeps").
+            // edges in the AOI are lifted too (liver.md, "What energy competition's repeat keeps").
             const auto t2 = Clock::now();
             const core::Image3D<std::int32_t> d = chessboard_distance(run.ls.mask);
             for (std::size_t i = 0; i < d.data.size(); ++i)

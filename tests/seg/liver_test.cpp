@@ -914,7 +914,7 @@ TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
 // competition's repeat as the thesis has it (SnakeParams::repeat_keep_voxels -1): with the repeat
 // trimmed to the first run (the default) slice 11's contour holds less fat (under the stop's 35 %)
 // and, without the growing-pieces rule, the kidney is followed down; with that rule (the
-// default) the run still ends at slice 12 (liver.md, "What the repeat keeps").
+// default) the run still ends at slice 12 (liver.md, "What energy competition's repeat keeps").
 TEST(LiverPipeline, TissueStopEndsAtTheLiversTip)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);

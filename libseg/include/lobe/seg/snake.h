@@ -73,7 +73,7 @@ struct SnakeParams {
     //! liver's interior ones too, and stops a pixel or more inside the first run's edge all round;
     //! it is trusted only to cut the first run's leak: the result is the first run's mask within
     //! this many voxels (chessboard distance) of the repeat's. -1: the repeat's mask as it is
-    //! (the thesis's rule). docs/algorithms/liver.md, "What the repeat keeps".
+    //! (the thesis's rule). docs/algorithms/liver.md, "What energy competition's repeat keeps".
     int repeat_keep_voxels = 1;
 };
 
