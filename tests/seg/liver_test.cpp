@@ -406,8 +406,8 @@ TEST(LiverPipeline, BrokenDomeContactRingStillCounts)
 // slice is kept with 3 052 voxels of heart). Before the seed slice's window was widened
 // (2026-12-07) the model missed no more liver (9 310 -> 7 526). Bounds: two thirds of the heart
 // voxels, half the Dice gain, at most 2 500 more liver voxels missed (that slice).
-// Since energy competition's repeat is trimmed (2026-12-07, later): heart in the mask 17 813 -> 5
-// 865, Dice 0.9127 -> 0.9398, liver missed 6 065 -> 6 373.
+// Since energy competition's repeat is trimmed (2026-12-07, later): heart in the mask 17 813 ->
+// 5 865, Dice 0.9127 -> 0.9398, liver missed 6 065 -> 6 373.
 TEST(LiverPipeline, HeartModelKeepsTheHeartOutAtThickSlices)
 {
     const Case c = phantom_case({1.2, 1.2, 5.0}, 17);
@@ -600,8 +600,8 @@ TEST(LiverPipeline, TwoThreadsGiveTheMaskOfOne)
 // 28 314, right kidney 8 130 fewer, Dice 0.949 -> 0.956 (with the 60 mm seed window 37 602 ->
 // 31 057, 5 505 fewer, 0.948 -> 0.954; 43 308 -> 36 339 before the wall margin). Bounds: half of
 // each gain.
-// Since energy competition's repeat is trimmed (2026-12-07, later): outside the truth 50 855 -> 27
-// 428 (right kidney 29 218 -> 6 235), Dice 0.9392 -> 0.9614, on 4 slices.
+// Since energy competition's repeat is trimmed (2026-12-07, later): outside the truth 50 855 ->
+// 27 428 (right kidney 29 218 -> 6 235), Dice 0.9392 -> 0.9614, on 4 slices.
 TEST(LiverPipeline, GrowingPiecesAreDropped)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);

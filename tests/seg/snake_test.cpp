@@ -325,10 +325,7 @@ TEST(Snake, TopologyMergesAndSplits)
     }
 }
 
-// §4.6: a liver-like region touching a heart-like one across a very weak contact (6 HU, below
-// the binary-edge threshold: 6/160 < 0.05), everything else strong. Without competition CDSG
-// pours into the neighbour; with the previous slice's contour as template the Auto rule sees
-// the result leave the AOI, switches G = 0.3 on and repeats once, and the contact holds.
+//! The weak-contact scene the three tests below share.
 struct WeakContact {
     core::ImageF img;
     core::LabelImage3D truth, templ, init;
@@ -349,6 +346,10 @@ WeakContact weak_contact()
     return w;
 }
 
+// §4.6: a liver-like region touching a heart-like one across a very weak contact (6 HU, below
+// the binary-edge threshold: 6/160 < 0.05), everything else strong. Without competition CDSG
+// pours into the neighbour; with the previous slice's contour as template the Auto rule sees
+// the result leave the AOI, switches G = 0.3 on and repeats once, and the contact holds.
 TEST(Snake, WeakContactNeedsEnergyCompetition)
 {
     const auto [img, truth, templ, init] = weak_contact();

@@ -70,7 +70,7 @@ struct SnakeParams {
     double aoi_leave_fraction = 0.05; //!< Auto: repeat when more than this fraction of the result's
                                     //!< boundary lies outside the AOI
     //! Auto: what the repeat keeps of the first run. The repeat lifts every edge in the AOI, the
-    //! liver's interior ones too, and stops a pixel or more inside the first run's edge all round;
+    //! object's interior ones too, and stops a voxel or more inside the first run's edge all round;
     //! it is trusted only to cut the first run's leak: the result is the first run's mask within
     //! this many voxels (chessboard distance) of the repeat's. -1: the repeat's mask as it is
     //! (the thesis's rule). docs/algorithms/liver.md, "What energy competition's repeat keeps".
