@@ -824,7 +824,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
                              previous ? p.window_growth_per_mm * c.hu.spacing[2] + p.window_margin_mm : p.seed_window_mm);
     SnakeParams sp = p.snake;
     if (previous)
-        sp.level_set.max_iterations = p.propagation_max_iterations;
+        sp.level_set.max_iterations = propagation_iteration_bound(p, c.hu.spacing[0], c.hu.spacing[1]);
     const auto run_snake = [&](const Window& win) {
         const core::LabelImage3D templ_w = previous ? crop(templ, win) : core::LabelImage3D();
         const core::LabelImage3D region_w = region.data.empty() ? core::LabelImage3D() : crop(region, win);
@@ -1074,6 +1074,7 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     LiverResult result;
     result.mask = core::LabelImage3D(hu.geometry(), 0);
     result.seed_slice = seed_slice;
+    result.propagation_iterations = propagation_iteration_bound(params, hu.spacing[0], hu.spacing[1]);
 
     SliceOutcome first = segment_slice(c, seed_slice, seed, nullptr, 0.0);
     report(c, first.report);
@@ -1334,6 +1335,23 @@ core::ImageF mr_liver_contrast(const core::ImageF& mr, double liver_value, doubl
     for (float& v : out.data)
         v = static_cast<float>(std::max(-1000.0, 100.0 - s * std::abs(double(v) - liver_value)));
     return out;
+}
+
+int propagation_iteration_bound(const LiverParams& params, double pixel_x_mm, double pixel_y_mm)
+{
+    const double ref = params.propagation_reference_pixel_mm;
+    if (params.propagation_max_iterations < 1 || !std::isfinite(ref) || ref < 0.0)
+        throw core::InvalidInputError("segment_liver: propagation_max_iterations must be >= 1 and "
+                                      "propagation_reference_pixel_mm finite and >= 0 (are " +
+                                      std::to_string(params.propagation_max_iterations) + ", " + std::to_string(ref) +
+                                      ")");
+    if (!(pixel_x_mm > 0.0 && std::isfinite(pixel_x_mm) && pixel_y_mm > 0.0 && std::isfinite(pixel_y_mm)))
+        throw core::InvalidInputError("segment_liver: the pixel spacing must be finite and > 0 (is " +
+                                      std::to_string(pixel_x_mm) + " x " + std::to_string(pixel_y_mm) + " mm)");
+    if (ref == 0.0)
+        return params.propagation_max_iterations;
+    const double scaled = params.propagation_max_iterations * ref / std::sqrt(pixel_x_mm * pixel_y_mm);
+    return static_cast<int>(std::clamp(std::lround(scaled), 1L, long(std::numeric_limits<int>::max())));
 }
 
 SnakeParams default_liver_snake()

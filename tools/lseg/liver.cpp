@@ -33,7 +33,7 @@ struct LiverOptions {
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
          no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
          no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false, no_wall_margin = false,
-         no_seed_window_widening = false, no_repeat_trim = false;
+         no_seed_window_widening = false, no_repeat_trim = false, no_iteration_scaling = false;
     seg::LiverParams params;
 };
 
@@ -124,6 +124,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         p.snake.competition = seg::CompetitionMode::Off;
     if (o.no_repeat_trim)
         p.snake.repeat_keep_voxels = -1;
+    if (o.no_iteration_scaling)
+        p.propagation_reference_pixel_mm = 0.0;
     p.post.convention =
         o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
     p.modality = o.modality == "ct" ? seg::Modality::Ct : o.modality == "mr" ? seg::Modality::Mr : seg::Modality::Auto;
@@ -207,6 +209,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_rejected", std::to_string(rejected));
         param("result.slices_recovered", std::to_string(recovered));
         param("result.slices_iteration_bound", std::to_string(bounded));
+        param("result.propagation_iterations", std::to_string(r.propagation_iterations));
         param("result.slices_above_contact", std::to_string(above_contact));
         param("result.tissue_stop_slices", not_liver);
         param("result.tissue_trim_slices", trimmed);
@@ -235,7 +238,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                 (p.fill_vessel_inlets && p.post.convention == seg::LiverConvention::Sliver07 ? "vessel-inlets " : "") +
                 (p.fill_surface_lesions && p.post.convention == seg::LiverConvention::Sliver07 ? "surface-lesions "
                                                                                                  : "") +
-                (p.use_3d_pass ? "3d-pass " : "") +
+                (p.use_3d_pass ? "3d-pass " : "") + (p.propagation_reference_pixel_mm > 0 ? "iteration-scaling " : "") +
                 (p.use_rib_cage && ct && p.wall_margin_mm > 0 ? "wall-margin " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                 (p.snake.competition == seg::CompetitionMode::Off ? ""
                  : p.snake.repeat_keep_voxels >= 0                ? "competition repeat-trim"
@@ -393,9 +396,12 @@ Command add_liver(CLI::App& lseg)
     cmd->add_flag("--envelope-stop", o->envelope_stop,
                   "Experiment: the snake's pressure acts only inside the growth envelope on propagated slices");
     cmd->add_option("--max-iterations", o->params.propagation_max_iterations,
-                    "Level-set iteration bound on a propagated slice")
+                    "Level-set iteration bound on a propagated slice of 0.7 mm pixels (scaled by 0.7 mm over the "
+                    "volume's pixel: 47 at 3 mm)")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    cmd->add_flag("--no-iteration-scaling", o->no_iteration_scaling,
+                  "Ablation: the same iteration bound on every pixel size, instead of the same front travel in mm");
     cmd->add_option("--seed-window", o->params.seed_window_mm,
                     "The seed slice's snake sees the seed's box widened by this [mm]")
         ->capture_default_str()

@@ -141,8 +141,14 @@ struct LiverParams {
                                     //!< window cut the left lobe; docs/algorithms/liver.md)
     double seed_window_hold = 0.9;  //!< ... kept only if it holds this share of the window's
                                     //!< contour (else the window's stands)
-    int propagation_max_iterations = 200; //!< level-set bound on a propagated slice (the front
-                                    //!< travels only erosion_mm + the growth bound)
+    int propagation_max_iterations = 200; //!< level-set bound on a propagated slice of
+                                    //!< propagation_reference_pixel_mm pixels (the front travels
+                                    //!< only erosion_mm + the growth bound)
+    double propagation_reference_pixel_mm = 0.7; //!< the bound is scaled by this over the in-plane
+                                    //!< pixel: the front moves about a fixed fraction of a pixel
+                                    //!< per iteration, so the same travel in mm takes fewer
+                                    //!< iterations on coarser pixels (200 at 0.7 mm, 47 at 3 mm;
+                                    //!< propagation_iteration_bound); 0 = the bound as it is
     bool layer_holds_pressure = false; //!< on a propagated slice the snake's pressure acts only
                                     //!< inside the liver-like layer; off: it lost 19 points on a
                                     //!< phantom by following the kidney (docs/algorithms/liver.md)
@@ -272,6 +278,16 @@ struct LiverParams {
     }();
 };
 
+//! The level-set bound on a propagated slice of a volume whose in-plane pixels are `pixel_x_mm` x
+//! `pixel_y_mm`: `propagation_max_iterations` x `propagation_reference_pixel_mm` / (their
+//! geometric mean), rounded, at least 1 (`propagation_max_iterations` itself when the reference
+//! is 0). Too coarse a bound leaves the front short of the liver's edge; on 3 mm pixels 200
+//! iterations let it creep 4 times as far in mm as on the 0.7 mm pixels the bound was set on,
+//! into the wall muscle (docs/algorithms/liver.md, "The iteration bound in mm"). \throw
+//! InvalidInputError for a bound below 1, a negative or non-finite reference, or pixels not
+//! finite and > 0.
+int propagation_iteration_bound(const LiverParams& params, double pixel_x_mm, double pixel_y_mm);
+
 //! What `segment_liver` returns.
 struct LiverResult {
     core::LabelImage3D mask;        //!< 1 = liver, on the input's grid
@@ -291,6 +307,7 @@ struct LiverResult {
     std::size_t heart_model_voxels = 0;   //!< voxels of the heart model (LiverParams::use_heart_model)
     std::size_t surface_lesion_voxels = 0; //!< voxels added by LiverParams::fill_surface_lesions
     std::size_t wall_margin_voxels = 0;   //!< voxels dropped by LiverParams::wall_margin_mm
+    int propagation_iterations = 0;       //!< the level-set bound the propagated slices had
     double dark_rim_level = 0;            //!< ... below this smoothed grey level (0: not applied)
     double dark_rim_neighbour = 0;        //!< ... set from this median of the darker tissue outside
     std::vector<LiverSliceReport> slices; //!< one per segmented slice, ascending k
