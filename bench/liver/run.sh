@@ -55,6 +55,7 @@ variants=("full|--shape $work/shape.h5"
           "no surface lesions|--shape $work/shape.h5 --no-surface-lesions"
           "no wall margin|--shape $work/shape.h5 --no-wall-margin"
           "no seed-window widening|--shape $work/shape.h5 --no-seed-window-widening"
+          "no iteration scaling|--shape $work/shape.h5 --no-iteration-scaling"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"

@@ -1157,6 +1157,29 @@ TEST(LiverPipeline, SeedWindowStandsWhereTheWholeSliceHoldsLess)
 
 // Auto's rule on what it will meet: a CT has air (below -500 HU) outside the body and in the
 // lungs; an MR magnitude image has no value there.
+// The propagated slices' bound is a front travel in mm: 200 iterations at the 0.7 mm pixels it
+// was set on, scaled by 0.7 mm over the pixel (the geometric mean of x and y), rounded, never
+// below 1; a reference of 0 leaves it as it is; nonsense is refused before any work.
+TEST(LiverPipeline, IterationBoundScalesWithThePixel)
+{
+    seg::LiverParams p;
+    EXPECT_EQ(seg::propagation_iteration_bound(p, 0.7, 0.7), 200);
+    EXPECT_EQ(seg::propagation_iteration_bound(p, 3.0, 3.0), 47);   // 140 / 3 = 46.7
+    EXPECT_EQ(seg::propagation_iteration_bound(p, 0.35, 0.35), 400);
+    EXPECT_EQ(seg::propagation_iteration_bound(p, 0.7, 2.8), 100);  // geometric mean 1.4 mm
+    EXPECT_EQ(seg::propagation_iteration_bound(p, 1000.0, 1000.0), 1);
+    p.propagation_reference_pixel_mm = 0.0;
+    EXPECT_EQ(seg::propagation_iteration_bound(p, 3.0, 3.0), 200);
+    EXPECT_THROW(seg::propagation_iteration_bound(p, 0.0, 1.0), core::InvalidInputError);
+    p.propagation_reference_pixel_mm = -0.7;
+    EXPECT_THROW(seg::propagation_iteration_bound(p, 1.0, 1.0), core::InvalidInputError);
+    p = seg::LiverParams{};
+    p.propagation_max_iterations = 0;
+    EXPECT_THROW(seg::propagation_iteration_bound(p, 1.0, 1.0), core::InvalidInputError);
+    const Case c = phantom_case({2.8, 2.8, 5.0}, 2);
+    EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
+}
+
 TEST(LiverPipeline, ModalityIsDetectedFromAir)
 {
     const Case c = phantom_case({2.8, 2.8, 5.0}, 2);
