@@ -720,8 +720,10 @@ TEST(LiverPipeline, PieceBehindAWideVeinStartsTheSnake)
 // lobe's partial-volume rim at the dome, where the dark rim step trims less), Dice 0.9637 ->
 // 0.9690, score 70.3 -> 78.7; since energy competition's repeat is trimmed to the first run
 // (2026-12-07) missed 40 005 -> 34 229, outside 15 363 -> 16 244, Dice 0.9747 -> 0.9770, score
-// 80.1 -> 84.0. Bounds: the seed slice's misses halved, half of each gain, the outside no more
-// than 10 000 voxels up. A contour that stops inside its window keeps it
+// 80.1 -> 84.0; since the iteration bound is scaled to the pixel (2026-12-07, evening; 215
+// iterations here) missed 38 170 -> 33 518, outside 16 458 -> 17 293, Dice 0.9751 -> 0.9769,
+// score 82.6 -> 84.1. Bounds: the seed slice's misses halved, about half of each gain, the outside
+// no more than 10 000 voxels up. A contour that stops inside its window keeps it
 // (LiverPipeline.T1LikePhantomIsSegmentedAsMr: the leak stop ends it there).
 TEST(LiverPipeline, SeedContourCutByItsWindowIsRedoneOnTheWholeSlice)
 {
@@ -742,8 +744,8 @@ TEST(LiverPipeline, SeedContourCutByItsWindowIsRedoneOnTheWholeSlice)
     EXPECT_LE(seed_missed(r.on), 0.5 * seed_missed(r.off));
     EXPECT_LT(r.missed_on + 2800.0, r.missed_off);
     EXPECT_LT(r.outside_on, r.outside_off + 10000.0);
-    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0011);
-    EXPECT_GE(r.score_on, r.score_off + 1.9);
+    EXPECT_GE(r.m_on.dice, r.m_off.dice + 0.0009);
+    EXPECT_GE(r.score_on, r.score_off + 0.7);
 }
 
 // The same on a phantom with thin slices (0.9 x 0.9 x 1.5 mm, seed 42): the wedge behind the vein
@@ -757,12 +759,14 @@ TEST(LiverPipeline, SeedContourCutByItsWindowIsRedoneOnTheWholeSlice)
 // piece rule sees it (liver.md, "The seed's window"), and this rule has nothing to act on.
 // Since energy competition's repeat is trimmed (2026-12-07, later): vessel-cut pieces on 1 -> 2
 // slices, missed 46 264 -> 34 373, outside 26 513 -> 27 073, Dice 0.9682 -> 0.9733, score 75.1 ->
-// 81.0.
+// 81.0. Run with the fixed iteration bound (propagation_reference_pixel_mm 0): with the bound
+// scaled to the pixel (156 iterations here) the wedge is never cut off (on and off: score 79.8).
 TEST(LiverPipeline, WideVeinGapIsReadByItsBrightQuarter)
 {
     const Case c = phantom_case({0.9, 0.9, 1.5}, 42);
     seg::LiverParams p;
     p.widen_seed_window = false;
+    p.propagation_reference_pixel_mm = 0.0;
     expect_midline_gains(c, p, "wide vein, thin slices", 8000.0, 0.0035, 3.5);
 }
 
@@ -776,11 +780,16 @@ TEST(LiverPipeline, WideVeinGapIsReadByItsBrightQuarter)
 // were the same: 76.2). Bounds: half of each gain, at most 3 000 voxels more outside the truth.
 // Since energy competition's repeat is trimmed (2026-12-07, later): vessel-cut pieces on 1 -> 2
 // slices, missed 39 078 -> 23 684, outside 26 783 -> 27 822, Dice 0.9713 -> 0.9777, score 77.2 ->
-// 83.4.
+// 83.4. Run with the fixed iteration bound (propagation_reference_pixel_mm 0): with the bound
+// scaled to the pixel (156 iterations here) the propagation reaches slice 88 with the wedge
+// already joined and the rule keeps the same piece on and off (score 81.2 both; liver.md, "The
+// iteration bound in mm").
 TEST(LiverPipeline, WedgeBehindAVeinOpenToTheSurfaceIsKept)
 {
     const Case c = phantom_case({0.9, 0.9, 1.5}, 42);
-    expect_midline_gains(c, seg::LiverParams{}, "vein open to the surface", 8000.0, 0.0036, 2.9);
+    seg::LiverParams p;
+    p.propagation_reference_pixel_mm = 0.0;
+    expect_midline_gains(c, p, "vein open to the surface", 8000.0, 0.0036, 2.9);
 }
 
 // Vessel inlets (LiverParams::fill_vessel_inlets, SLIVER07 convention): the hepatic veins run to
@@ -848,7 +857,10 @@ TEST(LiverPipeline, VesselInletsAreFilled)
 // run adds nothing. Run with energy competition's repeat as the thesis has it (repeat_keep_voxels
 // -1), where these figures were measured: with the trimmed repeat (the default) the lesion fill
 // still takes the tumour (1 776 -> 3 658 voxels, score 79.8 -> 80.0), but the two runs part
-// further up too, and only 3 297 of the 4 947 voxels they differ by are liver.
+// further up too, and only 3 297 of the 4 947 voxels they differ by are liver. Likewise with the
+// fixed iteration bound (propagation_reference_pixel_mm 0): scaled to the pixel (175 iterations
+// here) the fill takes the tumour (1 493 -> 3 294 voxels, score 76.9 -> 79.9) and 5 887 of the
+// 6 723 voxels the runs differ by are liver (88 %).
 TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
 {
     const Case c = phantom_case({0.8, 0.8, 2.5}, 13);
@@ -869,6 +881,7 @@ TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
     };
     seg::LiverParams p;
     p.snake.repeat_keep_voxels = -1;
+    p.propagation_reference_pixel_mm = 0.0;
     const seg::LiverResult on = seg::segment_liver(c.hu, p);
     p.fill_surface_lesions = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);
@@ -966,11 +979,14 @@ TEST(LiverPipeline, TissueStopEndsAtTheLiversTip)
 // slices higher, about half of the older gains, at most 4 000 voxels more outside.
 // Since energy competition's repeat is trimmed (2026-12-07, later): one slice trimmed, top slice 31
 // -> 33, missed 5 188 -> 2 557, outside 12 317 -> 13 022, Dice 0.9224 -> 0.9319, score 55.0 ->
-// 56.6.
+// 56.6. Run with the fixed iteration bound (propagation_reference_pixel_mm 0): with the bound
+// scaled to the pixel (88 iterations here) the dome's contours hold less of the heart's wall, the
+// tissue stop never fires and the top slice is 33 either way (score 55.7).
 TEST(LiverPipeline, TissueTrimKeepsTheDomeAtThickSlices)
 {
     const Case c = phantom_case({1.6, 1.6, 5.0}, 6);
     seg::LiverParams p;
+    p.propagation_reference_pixel_mm = 0.0;
     const seg::LiverResult on = seg::segment_liver(c.hu, p);
     p.trim_at_tissue_stop = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);
@@ -1016,7 +1032,9 @@ TEST(LiverPipeline, TissueTrimKeepsTheDomeAtThickSlices)
 // gone, fewer than 2 % liver among the dropped voxels) and the gains are asserted at a third.
 // Since energy competition's repeat is trimmed (2026-12-07, later): subcostal layer 3 117 -> 965,
 // other soft tissue 3 013 -> 2 542, 2 874 voxels dropped (0 liver), Dice 0.9331 -> 0.9398, score
-// 57.9 -> 61.1.
+// 57.9 -> 61.1. Since the iteration bound is scaled to the pixel (2026-12-07, evening; 117
+// iterations here): subcostal layer 2 003 -> 705, other soft tissue 2 929 -> 2 651, 1 737 voxels
+// dropped (0 liver), Dice 0.9331 -> 0.9371, score 59.2 -> 61.1; the gains are asserted at half.
 TEST(LiverPipeline, WallMarginDropsTheLayerUnderTheRibs)
 {
     const Case c = phantom_case({1.2, 1.2, 5.0}, 17);
@@ -1044,8 +1062,8 @@ TEST(LiverPipeline, WallMarginDropsTheLayerUnderTheRibs)
     EXPECT_EQ(added, 0u);
     EXPECT_LT(2 * wall(with.mask), wall(without.mask));
     EXPECT_LT(double(dropped_liver), 0.02 * double(dropped));
-    EXPECT_GE(m_on.dice, m_off.dice + 0.004);
-    EXPECT_GE(s_on, s_off + 2.0);
+    EXPECT_GE(m_on.dice, m_off.dice + 0.002);
+    EXPECT_GE(s_on, s_off + 0.9);
     p.wall_margin_mm = -1.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }

@@ -382,7 +382,9 @@ TEST(LsegLiver, WallMarginDropsTheWallUnderTheRibsOfTheRealCt)
 // goes on. Measured (no shape memory): first slice 13 -> 0, Dice 0.760 -> 0.849, ASD 6.97 -> 4.24
 // mm (the SLIVER07 score falls, 26.8 -> 10.4: without the lower lobe the missing volume cancelled
 // the leak's in the relative volume difference, 2.7 % -> 27 %; liver.md, "The tissue trim").
-// Bounds: the first slice within two of the volume's, half of the Dice and ASD gains.
+// Since the iteration bound is scaled to the pixel (47 iterations here; 2026-12-07, evening):
+// first slice 10 -> 0, Dice 0.842 -> 0.888, ASD 4.03 -> 2.87 mm. Bounds: the first slice within
+// two of the volume's, about half of the Dice and ASD gains.
 TEST(LsegLiver, TissueTrimFindsTheLowerLiverOfTheRealCt)
 {
     const fs::path ct = test::data_dir() / "ct-small";
@@ -415,6 +417,6 @@ TEST(LsegLiver, TissueTrimFindsTheLowerLiverOfTheRealCt)
     EXPECT_TRUE(off.trimmed.empty());
     EXPECT_LE(on.first_slice, 2);
     EXPECT_GE(off.first_slice, 10); // the failure the trim removes
-    EXPECT_GE(on.dice, off.dice + 0.045);
-    EXPECT_LE(on.asd, off.asd - 1.3);
+    EXPECT_GE(on.dice, off.dice + 0.023);
+    EXPECT_LE(on.asd, off.asd - 0.55);
 }
