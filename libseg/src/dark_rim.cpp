@@ -94,10 +94,11 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
     if (!(params.level > 0.0 && params.level <= 1.0) || params.ring_voxels < 1 ||
         !(params.max_half_thickness_mm > 0.0) || !std::isfinite(params.max_half_thickness_mm) ||
         !(params.smoothing_mm >= 0.0) || !std::isfinite(params.smoothing_mm) || !(params.body_depth_voxels >= 0.0) ||
-        !std::isfinite(params.body_depth_voxels) || params.sectors < 0 || params.sector_min_voxels < 1)
+        !std::isfinite(params.body_depth_voxels) || params.sectors < 0 || params.sector_min_voxels < 1 ||
+        !(params.touching_min_smoothing_px >= 0.0) || !std::isfinite(params.touching_min_smoothing_px))
         throw core::InvalidInputError("trim_dark_rim: level must lie in (0, 1], ring_voxels be >= 1, "
-                                      "max_half_thickness_mm finite and > 0, smoothing_mm and body_depth_voxels "
-                                      "finite and >= 0, sectors >= 0 and sector_min_voxels >= 1");
+                                      "max_half_thickness_mm finite and > 0, smoothing_mm, touching_min_smoothing_px "
+                                      "and body_depth_voxels finite and >= 0, sectors >= 0 and sector_min_voxels >= 1");
 
     DarkRimResult r;
     r.mask = core::LabelImage3D(mask.geometry(), 0);
@@ -105,6 +106,9 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
         r.mask.data[i] = mask.data[i] ? 1 : 0;
     const int nz = mask.size[2];
     const double h = std::max(mask.spacing[0], mask.spacing[1]);
+    // Whether the smoothing mixes a rim pixel with its neighbours enough to darken a half-object one.
+    const bool keep_touching = params.smoothing_mm >= params.touching_min_smoothing_px * h;
+    r.touching_kept = keep_touching;
     const cv::Mat ring_disc =
         cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * params.ring_voxels + 1, 2 * params.ring_voxels + 1));
     const std::array<int, 3> margin{params.ring_voxels + 2, params.ring_voxels + 2, 0};
@@ -185,7 +189,10 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
         if (std::find(rest.data.begin(), rest.data.end(), 1) == rest.data.end())
             continue;
         cv::Mat near_rest; // the body and its 8 neighbours: what touches the object is kept
-        cv::dilate(as_mat(rest), near_rest, cv::Mat::ones(3, 3, CV_8U));
+        if (keep_touching)
+            cv::dilate(as_mat(rest), near_rest, cv::Mat::ones(3, 3, CV_8U));
+        else
+            near_rest = as_mat(rest).clone();
         cv::Mat cand(m.size[1], m.size[0], CV_8U, cv::Scalar(0));
         for (std::size_t i = 0; i < m.data.size(); ++i)
             cand.data[i] = dark.data[i] && !near_rest.data[i] ? 1 : 0;

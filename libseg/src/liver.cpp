@@ -1248,6 +1248,7 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
             result.dark_rim_voxels = rim.removed;
             result.dark_rim_level = rim.level;
             result.dark_rim_neighbour = rim.neighbour;
+            result.dark_rim_touching_kept = rim.touching_kept;
             result.timings.emplace_back("dark rim", seconds_since(td));
         }
         if (c.progress && rim.applied && params.trim_dark_rim) {
@@ -1255,7 +1256,8 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
             m.precision(3);
             m << "dark rim: " << rim.removed << " voxels darker than " << rim.level
               << " along the contour's rim dropped (liver " << cx.band.mean << ", darker tissue outside "
-              << rim.neighbour << "), " << seconds_since(td) << " s";
+              << rim.neighbour << (rim.touching_kept ? "" : "; pixels touching the liver included") << "), "
+              << seconds_since(td) << " s";
             c.progress(m.str());
         }
     }

@@ -180,6 +180,61 @@ TEST(DarkRim, WithoutDarkerTissueNothingChanges)
     EXPECT_EQ(count(r.mask), 0u);
 }
 
+// Coarse pixels: an object of 100 in fat (-100) on a 3 x 3 mm grid, and the mask one pixel wider
+// all round, where each pixel reads -60 (a fifth object, the rest fat: what a contour that ran a
+// pixel too far holds). At 3 mm the 1 mm smoothing barely mixes neighbours (a pixel keeps about
+// 86 % of its own value), so the ring reads about -50, below the half-way level (0), and is
+// mostly fat: it goes though it touches the object (touching_min_smoothing_px 0.5 > 1 mm / 3 mm).
+// The same pixels at 0.8 mm, or with the parameter at 0, keep the touching ring (there the
+// smoothing spans more than a pixel, and a boundary pixel half object reads below the level).
+// The object's own pixels never go. Measured: the level 0.06; the ring's 180 pixels all dropped
+// at 3 mm, 12 at 0.8 mm (where the wider blur darkens the object's outermost pixel beside a ring
+// pixel below the level, so that ring pixel no longer touches the body: the rule as it was), none
+// with the parameter at 0. Bounds: the whole ring at 3 mm (its pixels lie about 50 units below
+// the level, the noise's sd is 4), none of the object, at most a tenth of the ring at 0.8 mm.
+TEST(DarkRim, OnCoarsePixelsTheRingTouchingTheObjectGoes)
+{
+    const auto ring_scene = [](double pixel) {
+        core::ImageGeometry g;
+        g.size = {40, 40, 3};
+        g.spacing = {pixel, pixel, 3.0};
+        Scene s{core::ImageF(g, 0.f),     core::LabelImage3D(g, 0), core::LabelImage3D(g, 0),
+                core::LabelImage3D(g, 0), core::LabelImage3D(g, 0), core::LabelImage3D(g, 0),
+                core::LabelImage3D(g, 0)};
+        std::mt19937 rng(3);
+        std::normal_distribution<float> noise(0.f, 4.f);
+        for (int k = 0; k < 3; ++k)
+            for (int j = 0; j < 40; ++j)
+                for (int i = 0; i < 40; ++i) {
+                    const double r = std::hypot(i - 20.0, j - 20.0);
+                    s.image.at(i, j, k) = static_cast<float>((r <= 10 ? kObject : r <= 11 ? -60.0 : kFat)) + noise(rng);
+                    s.object.at(i, j, k) = r <= 10;
+                    s.layer_in_mask.at(i, j, k) = r > 10 && r <= 11; // the ring
+                    s.mask.at(i, j, k) = r <= 11;
+                }
+        return s;
+    };
+    const Scene coarse = ring_scene(3.0), fine = ring_scene(0.8);
+    const std::size_t ring = count(coarse.layer_in_mask);
+    const seg::DarkRimResult c = seg::trim_dark_rim(coarse.image, coarse.mask, kObject, kObject - 10.0);
+    const seg::DarkRimResult f = seg::trim_dark_rim(fine.image, fine.mask, kObject, kObject - 10.0);
+    seg::DarkRimParams always;
+    always.touching_min_smoothing_px = 0.0;
+    const seg::DarkRimResult a = seg::trim_dark_rim(coarse.image, coarse.mask, kObject, kObject - 10.0, always);
+    std::cerr << "coarse ring: level " << c.level << "; ring of " << ring << " pixels, dropped at 3 mm "
+              << removed_from(coarse.mask, c.mask, coarse.layer_in_mask) << ", at 0.8 mm "
+              << removed_from(fine.mask, f.mask, fine.layer_in_mask) << ", at 3 mm with the parameter at 0 "
+              << removed_from(coarse.mask, a.mask, coarse.layer_in_mask) << "\n";
+    ASSERT_TRUE(c.applied);
+    EXPECT_EQ(removed_from(coarse.mask, c.mask, coarse.layer_in_mask), ring);
+    EXPECT_EQ(removed_from(coarse.mask, c.mask, coarse.object), 0u);
+    EXPECT_LE(10 * removed_from(fine.mask, f.mask, fine.layer_in_mask), ring);
+    EXPECT_EQ(removed_from(coarse.mask, a.mask, coarse.layer_in_mask), 0u);
+    always.touching_min_smoothing_px = -1.0;
+    EXPECT_THROW(seg::trim_dark_rim(coarse.image, coarse.mask, kObject, kObject - 10.0, always),
+                 core::InvalidInputError);
+}
+
 TEST(DarkRim, BadInputIsRefused)
 {
     const Scene s = scene();

@@ -33,7 +33,8 @@ struct LiverOptions {
          envelope_stop = false, no_tissue_stop = false, no_edge_snap = false, no_piece_growth = false,
          no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
          no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false, no_wall_margin = false,
-         no_seed_window_widening = false, no_repeat_trim = false, no_iteration_scaling = false;
+         no_seed_window_widening = false, no_repeat_trim = false, no_iteration_scaling = false,
+         dark_rim_keep_touching = false;
     seg::LiverParams params;
 };
 
@@ -126,6 +127,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         p.snake.repeat_keep_voxels = -1;
     if (o.no_iteration_scaling)
         p.propagation_reference_pixel_mm = 0.0;
+    if (o.dark_rim_keep_touching)
+        p.dark_rim.touching_min_smoothing_px = 0.0;
     p.post.convention =
         o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
     p.modality = o.modality == "ct" ? seg::Modality::Ct : o.modality == "mr" ? seg::Modality::Mr : seg::Modality::Auto;
@@ -222,6 +225,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.wall_margin_voxels", std::to_string(r.wall_margin_voxels));
         param("result.dark_rim_level", fixed(r.dark_rim_level, 1));
         param("result.dark_rim_neighbour", fixed(r.dark_rim_neighbour, 1));
+        param("result.dark_rim_touching_kept", r.dark_rim_touching_kept ? "true" : "false");
         if (r.bias_corrected)
             param("result.bias_field.gain", fixed(r.bias_min_gain, 3) + " to " + fixed(r.bias_max_gain, 3));
         const bool ct = r.modality == seg::Modality::Ct; // MR runs without the start slice and the rib cage
@@ -358,6 +362,9 @@ Command add_liver(CLI::App& lseg)
                     "to the darker tissue outside the contour")
         ->capture_default_str()
         ->check(CLI::Range(0.05, 1.0));
+    cmd->add_flag("--dark-rim-keep-touching", o->dark_rim_keep_touching,
+                  "Ablation: the dark rim keeps the dark pixels touching the liver whatever the pixel size (by "
+                  "default only where its 1 mm smoothing spans half a pixel: pixels up to 2 mm)");
     cmd->add_flag("--no-piece-growth", o->no_piece_growth,
                   "Ablation: keep the separate pieces of a contour that grow past the liver's widest slice");
     cmd->add_option("--piece-growth", o->params.piece_growth_limit,

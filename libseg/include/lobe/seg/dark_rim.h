@@ -21,6 +21,12 @@ struct DarkRimParams {
     double max_half_thickness_mm = 5.0; //!< thicker dark pieces are kept: a lesion of 1 cm or more
                                         //!< at the surface (liver under SLIVER07) is not a layer of muscle
     double smoothing_mm = 1.0;          //!< Gaussian sigma of the grey levels, in plane (as the snakes see them)
+    double touching_min_smoothing_px = 0.5; //!< the pixels touching the body are kept (a boundary pixel
+                                        //!< half object, half darker tissue reads below the level after the
+                                        //!< smoothing) only where the smoothing's sigma spans at least this many
+                                        //!< pixels; on coarser pixels (3 mm at 1 mm) it barely mixes a pixel with
+                                        //!< its neighbours, and a rim pixel below the half-way level is mostly
+                                        //!< darker tissue. 0 = always kept
     double body_depth_voxels = 2.0;     //!< the object's body in a slice: its non-dark pieces reaching
                                         //!< more than this many pixels from their edge (not the thin partial-
                                         //!< volume sliver between a dark layer and a bright rib)
@@ -36,11 +42,14 @@ struct DarkRimResult {
     double neighbour = 0;    //!< the median of the darker tissue outside the mask
     std::size_t removed = 0; //!< voxels dropped
     bool applied = false;    //!< false: no darker tissue outside the mask, nothing done
+    bool touching_kept = true; //!< the dark pixels touching the body were kept (the smoothing spans
+                             //!< touching_min_smoothing_px pixels); false: judged like the rest
 };
 
 //! Drops, on every axial slice of `mask` (non-zero = object), the voxels darker than the level
 //! (smoothed grey level) that are not among the 8 neighbours of the slice's body (its non-dark
-//! pieces deeper than `body_depth_voxels`), in 8-connected pieces that reach the mask's outside in
+//! pieces deeper than `body_depth_voxels`; the neighbours count only where `smoothing_mm` spans
+//! `touching_min_smoothing_px` pixels), in 8-connected pieces that reach the mask's outside in
 //! the slice and are at most 2 x `max_half_thickness_mm` thick, or thicker but no brighter on
 //! average than the volume's neighbour (the surroundings' fat, lung or gas, not a lesion), and the
 //! pieces of the mask that this cuts off from the body. The level is
@@ -51,8 +60,8 @@ struct DarkRimResult {
 //! is the object's grey level and `low` the low end of its band (below it a voxel is not
 //! object-like), both in `image` units. \throw InvalidInputError for a mask not on the image's
 //! grid, non-finite median or low, low above median, or parameters out of range (level in (0, 1],
-//! ring_voxels >= 1, max_half_thickness_mm > 0, smoothing_mm and body_depth_voxels >= 0, sectors
-//! >= 0, sector_min_voxels >= 1).
+//! ring_voxels >= 1, max_half_thickness_mm > 0, smoothing_mm, touching_min_smoothing_px and
+//! body_depth_voxels >= 0, sectors >= 0, sector_min_voxels >= 1).
 DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D& mask, double median, double low,
                             const DarkRimParams& params = {});
 

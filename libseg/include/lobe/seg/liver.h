@@ -310,6 +310,7 @@ struct LiverResult {
     int propagation_iterations = 0;       //!< the level-set bound the propagated slices had
     double dark_rim_level = 0;            //!< ... below this smoothed grey level (0: not applied)
     double dark_rim_neighbour = 0;        //!< ... set from this median of the darker tissue outside
+    bool dark_rim_touching_kept = true;   //!< ... keeping the dark pixels touching the liver (pixels up to 2 mm)
     std::vector<LiverSliceReport> slices; //!< one per segmented slice, ascending k
     std::vector<std::pair<std::string, double>> timings; //!< seconds per stage
 };
