@@ -11,9 +11,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <initializer_list>
 #include <string>
 #include <tuple>
 #include <utility>
+#include <vector>
 
 using namespace lobe;
 namespace fs = std::filesystem;
@@ -68,6 +70,32 @@ OnOff ct_dicom_on_off(const fs::path& ct, const fs::path& dir, const std::string
         }
     }
     return o;
+}
+
+//! One `lseg liver` run on ../shared/data/ct-small (`ct`) with `args` (quiet), evaluated against
+//! its reference: the provenance parameters asked for (empty when the run wrote nothing), Dice and
+//! ASD.
+struct CtSmallRun {
+    std::vector<std::string> params;
+    double dice = -1, asd = -1;
+};
+
+CtSmallRun ct_small_run(const fs::path& ct, const fs::path& dir, const std::string& name, const std::string& args,
+                        std::initializer_list<const char*> keys)
+{
+    CtSmallRun out;
+    auto r = run_lseg("liver " + q(ct / "ct.mhd") + " -o " + q(dir / (name + ".h5")) + " --quiet" + args, dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    const auto prov = io::Hdf5Reader(dir / (name + ".h5")).provenance();
+    if (prov.empty())
+        return out;
+    for (const char* k : keys)
+        out.params.push_back(parameter(prov.back(), k));
+    r = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    out.dice = test::figure_from_eval(r.out, "dice");
+    out.asd = test::figure_from_eval(r.out, "asd_mm");
+    return out;
 }
 
 } // namespace
@@ -257,32 +285,17 @@ TEST(LsegLiver, IterationBoundInMmKeepsTheRealCtOffTheWall)
     const fs::path ct = test::data_dir() / "ct-small";
     LOBE_REQUIRE_PATH(ct / "ct.mhd");
     const auto dir = test::scratch_dir();
-    struct Run {
-        std::string iterations, components;
-        double dice, asd;
-    };
-    const auto run = [&](const std::string& name, const std::string& args) {
-        auto r = run_lseg("liver " + q(ct / "ct.mhd") + " -o " + q(dir / (name + ".h5")) + " --quiet" + args, dir);
-        EXPECT_EQ(r.exit_code, 0) << r.err;
-        const auto prov = io::Hdf5Reader(dir / (name + ".h5")).provenance();
-        Run out{{}, {}, -1.0, -1.0};
-        if (prov.empty())
-            return out;
-        out.iterations = parameter(prov.back(), "result.propagation_iterations");
-        out.components = parameter(prov.back(), "components");
-        r = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
-        EXPECT_EQ(r.exit_code, 0) << r.err;
-        out.dice = test::figure_from_eval(r.out, "dice");
-        out.asd = test::figure_from_eval(r.out, "asd_mm");
-        return out;
-    };
-    const Run on = run("on", ""), off = run("off", " --no-iteration-scaling");
-    std::cerr << "ct-small: iterations " << off.iterations << " -> " << on.iterations << ", Dice " << off.dice
-              << " -> " << on.dice << ", ASD " << off.asd << " -> " << on.asd << " mm\n";
-    EXPECT_EQ(on.iterations, "47");
-    EXPECT_EQ(off.iterations, "200");
-    EXPECT_NE(on.components.find("iteration-scaling"), std::string::npos) << on.components;
-    EXPECT_EQ(off.components.find("iteration-scaling"), std::string::npos) << off.components;
+    const auto keys = {"result.propagation_iterations", "components"};
+    const CtSmallRun on = ct_small_run(ct, dir, "on", "", keys);
+    const CtSmallRun off = ct_small_run(ct, dir, "off", " --no-iteration-scaling", keys);
+    ASSERT_EQ(on.params.size(), 2u);
+    ASSERT_EQ(off.params.size(), 2u);
+    std::cerr << "ct-small: iterations " << off.params[0] << " -> " << on.params[0] << ", Dice " << off.dice << " -> "
+              << on.dice << ", ASD " << off.asd << " -> " << on.asd << " mm\n";
+    EXPECT_EQ(on.params[0], "47");
+    EXPECT_EQ(off.params[0], "200");
+    EXPECT_NE(on.params[1].find("iteration-scaling"), std::string::npos) << on.params[1];
+    EXPECT_EQ(off.params[1].find("iteration-scaling"), std::string::npos) << off.params[1];
     EXPECT_GE(on.dice, off.dice + 0.013);
     EXPECT_LE(on.asd, off.asd - 0.47);
 }
@@ -299,31 +312,16 @@ TEST(LsegLiver, DarkRimTakesTheFatRingOfTheCoarseCt)
     const fs::path ct = test::data_dir() / "ct-small";
     LOBE_REQUIRE_PATH(ct / "ct.mhd");
     const auto dir = test::scratch_dir();
-    struct Run {
-        std::string kept;
-        double voxels, dice, asd;
-    };
-    const auto run = [&](const std::string& name, const std::string& args) {
-        auto r = run_lseg("liver " + q(ct / "ct.mhd") + " -o " + q(dir / (name + ".h5")) + " --quiet" + args, dir);
-        EXPECT_EQ(r.exit_code, 0) << r.err;
-        const auto prov = io::Hdf5Reader(dir / (name + ".h5")).provenance();
-        Run out{{}, -1.0, -1.0, -1.0};
-        if (prov.empty())
-            return out;
-        out.kept = parameter(prov.back(), "result.dark_rim_touching_kept");
-        out.voxels = std::stod(parameter(prov.back(), "result.dark_rim_voxels"));
-        r = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
-        EXPECT_EQ(r.exit_code, 0) << r.err;
-        out.dice = test::figure_from_eval(r.out, "dice");
-        out.asd = test::figure_from_eval(r.out, "asd_mm");
-        return out;
-    };
-    const Run on = run("on", ""), off = run("off", " --dark-rim-keep-touching");
-    std::cerr << "ct-small: dark rim " << off.voxels << " -> " << on.voxels << " voxels, Dice " << off.dice << " -> "
-              << on.dice << ", ASD " << off.asd << " -> " << on.asd << " mm\n";
-    EXPECT_EQ(on.kept, "false");
-    EXPECT_EQ(off.kept, "true");
-    EXPECT_GE(on.voxels, 10.0 * off.voxels);
+    const auto keys = {"result.dark_rim_touching_kept", "result.dark_rim_voxels"};
+    const CtSmallRun on = ct_small_run(ct, dir, "on", "", keys);
+    const CtSmallRun off = ct_small_run(ct, dir, "off", " --dark-rim-keep-touching", keys);
+    ASSERT_EQ(on.params.size(), 2u);
+    ASSERT_EQ(off.params.size(), 2u);
+    std::cerr << "ct-small: dark rim " << off.params[1] << " -> " << on.params[1] << " voxels, Dice " << off.dice
+              << " -> " << on.dice << ", ASD " << off.asd << " -> " << on.asd << " mm\n";
+    EXPECT_EQ(on.params[0], "false");
+    EXPECT_EQ(off.params[0], "true");
+    EXPECT_GE(std::stod(on.params[1]), 10.0 * std::stod(off.params[1]));
     EXPECT_GE(on.dice, off.dice + 0.007);
     EXPECT_LE(on.asd, off.asd - 0.2);
 }
@@ -433,33 +431,17 @@ TEST(LsegLiver, TissueTrimFindsTheLowerLiverOfTheRealCt)
     const fs::path ct = test::data_dir() / "ct-small";
     LOBE_REQUIRE_PATH(ct / "ct.mhd");
     const auto dir = test::scratch_dir();
-    struct Run {
-        int first_slice;
-        std::string trimmed;
-        double dice, asd;
-    };
-    const auto run = [&](const std::string& name, const std::string& args) {
-        auto r = run_lseg("liver " + q(ct / "ct.mhd") + " -o " + q(dir / (name + ".h5")) + " --quiet" + args, dir);
-        EXPECT_EQ(r.exit_code, 0) << r.err;
-        const auto prov = io::Hdf5Reader(dir / (name + ".h5")).provenance();
-        Run out{-1, {}, -1.0, -1.0};
-        if (prov.empty())
-            return out;
-        out.first_slice = std::stoi(parameter(prov.back(), "result.first_slice"));
-        out.trimmed = parameter(prov.back(), "result.tissue_trim_slices");
-        r = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
-        EXPECT_EQ(r.exit_code, 0) << r.err;
-        out.dice = test::figure_from_eval(r.out, "dice");
-        out.asd = test::figure_from_eval(r.out, "asd_mm");
-        return out;
-    };
-    const Run on = run("on", ""), off = run("off", " --no-tissue-trim");
-    std::cerr << "ct-small: first slice " << off.first_slice << " -> " << on.first_slice << " (trimmed " << on.trimmed
+    const auto keys = {"result.first_slice", "result.tissue_trim_slices"};
+    const CtSmallRun on = ct_small_run(ct, dir, "on", "", keys);
+    const CtSmallRun off = ct_small_run(ct, dir, "off", " --no-tissue-trim", keys);
+    ASSERT_EQ(on.params.size(), 2u);
+    ASSERT_EQ(off.params.size(), 2u);
+    std::cerr << "ct-small: first slice " << off.params[0] << " -> " << on.params[0] << " (trimmed " << on.params[1]
               << "), Dice " << off.dice << " -> " << on.dice << ", ASD " << off.asd << " -> " << on.asd << " mm\n";
-    EXPECT_FALSE(on.trimmed.empty());
-    EXPECT_TRUE(off.trimmed.empty());
-    EXPECT_LE(on.first_slice, 2);
-    EXPECT_GE(off.first_slice, 10); // the failure the trim removes
+    EXPECT_FALSE(on.params[1].empty());
+    EXPECT_TRUE(off.params[1].empty());
+    EXPECT_LE(std::stoi(on.params[0]), 2);
+    EXPECT_GE(std::stoi(off.params[0]), 10); // the failure the trim removes
     EXPECT_GE(on.dice, off.dice + 0.023);
     EXPECT_LE(on.asd, off.asd - 0.55);
 }
