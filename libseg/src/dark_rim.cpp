@@ -192,7 +192,7 @@ DarkRimResult trim_dark_rim(const core::ImageF& image, const core::LabelImage3D&
         if (keep_touching)
             cv::dilate(as_mat(rest), near_rest, cv::Mat::ones(3, 3, CV_8U));
         else
-            near_rest = as_mat(rest).clone();
+            near_rest = as_mat(rest); // a view of the body, only read below
         cv::Mat cand(m.size[1], m.size[0], CV_8U, cv::Scalar(0));
         for (std::size_t i = 0; i < m.data.size(); ++i)
             cand.data[i] = dark.data[i] && !near_rest.data[i] ? 1 : 0;

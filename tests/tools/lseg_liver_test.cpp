@@ -13,7 +13,7 @@
 #include <algorithm>
 #include <initializer_list>
 #include <string>
-#include <tuple>
+#include <variant>
 #include <utility>
 #include <vector>
 
@@ -25,6 +25,37 @@ namespace {
 using test::q;
 using test::run_lseg;
 using test::parameter;
+
+//! One `lseg liver IMAGE -o DIR/NAME.h5 --mask DIR/NAME.mhd ARGS` run, evaluated against the
+//! reference `ref`: its stderr, the provenance parameters asked for (empty when the run wrote
+//! nothing), and the SLIVER07 score, Dice and ASD.
+struct EvaluatedRun {
+    std::string err;
+    std::vector<std::string> params;
+    double score = -1, dice = -1, asd = -1;
+};
+
+EvaluatedRun liver_run(const fs::path& image, const fs::path& ref, const fs::path& dir, const std::string& name,
+                       const std::string& args, std::initializer_list<const char*> keys = {})
+{
+    EvaluatedRun out;
+    auto r = run_lseg("liver " + q(image) + " -o " + q(dir / (name + ".h5")) + " --mask " + q(dir / (name + ".mhd")) +
+                          " " + args,
+                      dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    out.err = r.err;
+    const auto prov = io::Hdf5Reader(dir / (name + ".h5")).provenance();
+    if (prov.empty())
+        return out;
+    for (const char* k : keys)
+        out.params.push_back(parameter(prov.back(), k));
+    r = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ref) + " --seg-name liver --json", dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    out.score = test::figure_from_eval(r.out, "total"); // the overall SLIVER07 score
+    out.dice = test::figure_from_eval(r.out, "dice");
+    out.asd = test::figure_from_eval(r.out, "asd_mm");
+    return out;
+}
 
 //! One component on and off on ../shared/data/ct-dicom-jpeg2000 (`lseg liver` with `on_args`,
 //! then with `off_args`): both SLIVER07 scores against its reference, the "on" run's provenance
@@ -42,21 +73,14 @@ OnOff ct_dicom_on_off(const fs::path& ct, const fs::path& dir, const std::string
                       const std::string& off_args, const std::string& count_key)
 {
     OnOff o;
-    const auto run = [&](const std::string& name, const std::string& args) {
-        const auto r = run_lseg("liver " + q(ct / "dicom") + " -o " + q(dir / (name + ".h5")) + " --mask " +
-                                    q(dir / (name + ".mhd")) + " " + args,
-                                dir);
-        EXPECT_EQ(r.exit_code, 0) << r.err;
-        const auto e = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
-        EXPECT_EQ(e.exit_code, 0) << e.err;
-        return std::make_pair(r.err, test::figure_from_eval(e.out, "total")); // the overall SLIVER07 score
-    };
-    std::tie(o.err, o.on) = run("on", on_args);
-    o.off = run("off", off_args).second;
-    const auto prov = io::Hdf5Reader(dir / "on.h5").provenance();
-    if (prov.empty())
+    const EvaluatedRun on = liver_run(ct / "dicom", ct / "liver.mhd", dir, "on", on_args, {count_key.c_str()});
+    const EvaluatedRun off = liver_run(ct / "dicom", ct / "liver.mhd", dir, "off", off_args);
+    o.err = on.err;
+    o.on = on.score;
+    o.off = off.score;
+    if (on.params.empty())
         return o;
-    o.count = std::stod(parameter(prov.back(), count_key));
+    o.count = std::stod(on.params[0]);
     const auto mask_on = io::read_image(dir / "on.mhd"), mask_off = io::read_image(dir / "off.mhd"),
                ref = io::read_image(ct / "liver.mhd");
     const auto& a = std::get<core::LabelImage3D>(mask_on).data;
@@ -72,30 +96,11 @@ OnOff ct_dicom_on_off(const fs::path& ct, const fs::path& dir, const std::string
     return o;
 }
 
-//! One `lseg liver` run on ../shared/data/ct-small (`ct`) with `args` (quiet), evaluated against
-//! its reference: the provenance parameters asked for (empty when the run wrote nothing), Dice and
-//! ASD.
-struct CtSmallRun {
-    std::vector<std::string> params;
-    double dice = -1, asd = -1;
-};
-
-CtSmallRun ct_small_run(const fs::path& ct, const fs::path& dir, const std::string& name, const std::string& args,
-                        std::initializer_list<const char*> keys)
+//! A quiet run on ../shared/data/ct-small (`ct`) against its liver reference.
+EvaluatedRun ct_small_run(const fs::path& ct, const fs::path& dir, const std::string& name, const std::string& args,
+                          std::initializer_list<const char*> keys)
 {
-    CtSmallRun out;
-    auto r = run_lseg("liver " + q(ct / "ct.mhd") + " -o " + q(dir / (name + ".h5")) + " --quiet" + args, dir);
-    EXPECT_EQ(r.exit_code, 0) << r.err;
-    const auto prov = io::Hdf5Reader(dir / (name + ".h5")).provenance();
-    if (prov.empty())
-        return out;
-    for (const char* k : keys)
-        out.params.push_back(parameter(prov.back(), k));
-    r = run_lseg("eval " + q(dir / (name + ".h5")) + " " + q(ct / "liver.mhd") + " --seg-name liver --json", dir);
-    EXPECT_EQ(r.exit_code, 0) << r.err;
-    out.dice = test::figure_from_eval(r.out, "dice");
-    out.asd = test::figure_from_eval(r.out, "asd_mm");
-    return out;
+    return liver_run(ct / "ct.mhd", ct / "liver.mhd", dir, name, "--quiet" + args, keys);
 }
 
 } // namespace
@@ -286,8 +291,8 @@ TEST(LsegLiver, IterationBoundInMmKeepsTheRealCtOffTheWall)
     LOBE_REQUIRE_PATH(ct / "ct.mhd");
     const auto dir = test::scratch_dir();
     const auto keys = {"result.propagation_iterations", "components"};
-    const CtSmallRun on = ct_small_run(ct, dir, "on", "", keys);
-    const CtSmallRun off = ct_small_run(ct, dir, "off", " --no-iteration-scaling", keys);
+    const EvaluatedRun on = ct_small_run(ct, dir, "on", "", keys);
+    const EvaluatedRun off = ct_small_run(ct, dir, "off", " --no-iteration-scaling", keys);
     ASSERT_EQ(on.params.size(), 2u);
     ASSERT_EQ(off.params.size(), 2u);
     std::cerr << "ct-small: iterations " << off.params[0] << " -> " << on.params[0] << ", Dice " << off.dice << " -> "
@@ -313,8 +318,8 @@ TEST(LsegLiver, DarkRimTakesTheFatRingOfTheCoarseCt)
     LOBE_REQUIRE_PATH(ct / "ct.mhd");
     const auto dir = test::scratch_dir();
     const auto keys = {"result.dark_rim_touching_kept", "result.dark_rim_voxels"};
-    const CtSmallRun on = ct_small_run(ct, dir, "on", "", keys);
-    const CtSmallRun off = ct_small_run(ct, dir, "off", " --dark-rim-keep-touching", keys);
+    const EvaluatedRun on = ct_small_run(ct, dir, "on", "", keys);
+    const EvaluatedRun off = ct_small_run(ct, dir, "off", " --dark-rim-keep-touching", keys);
     ASSERT_EQ(on.params.size(), 2u);
     ASSERT_EQ(off.params.size(), 2u);
     std::cerr << "ct-small: dark rim " << off.params[1] << " -> " << on.params[1] << " voxels, Dice " << off.dice
@@ -432,8 +437,8 @@ TEST(LsegLiver, TissueTrimFindsTheLowerLiverOfTheRealCt)
     LOBE_REQUIRE_PATH(ct / "ct.mhd");
     const auto dir = test::scratch_dir();
     const auto keys = {"result.first_slice", "result.tissue_trim_slices"};
-    const CtSmallRun on = ct_small_run(ct, dir, "on", "", keys);
-    const CtSmallRun off = ct_small_run(ct, dir, "off", " --no-tissue-trim", keys);
+    const EvaluatedRun on = ct_small_run(ct, dir, "on", "", keys);
+    const EvaluatedRun off = ct_small_run(ct, dir, "off", " --no-tissue-trim", keys);
     ASSERT_EQ(on.params.size(), 2u);
     ASSERT_EQ(off.params.size(), 2u);
     std::cerr << "ct-small: first slice " << off.params[0] << " -> " << on.params[0] << " (trimmed " << on.params[1]
