@@ -474,6 +474,7 @@ struct Context {
     Tissue tissue;                        //!< the liver's grey level (seed slice)
     Tissue band;                          //!< the grey levels under the seed slice's contour
                                           //!< (median, robust sd): the tissue stop's band
+    bool band_measured = false;           //!< band holds the seed contour's levels (after the seed slice)
     bool downward = false;                //!< the propagation goes down (towards the tip)
     bool heart_known = false;             //!< the start slice found the heart at heart_i, heart_j
     double heart_i = 0, heart_j = 0;      //!< (continuous voxel index, in-plane)
@@ -509,6 +510,14 @@ core::LabelImage3D liver_layer(const Context& c, const core::ImageF& smoothed)
     // slice, and the liver ends here (the fixed band ends it on the same slice).
     if (!(lr.low <= c.tissue.mean && c.tissue.mean <= lr.high))
         std::fill(lr.mask.data.begin(), lr.mask.data.end(), std::uint8_t(0));
+    // The clip needs the band, measured on the seed slice's contour: the seed's own snake runs without it.
+    if (c.p.layer_clip_sigmas > 0.0 && c.band_measured) {
+        const double lo = c.band.mean - c.p.layer_clip_sigmas * c.band.sigma;
+        const double hi = c.band.mean + c.p.layer_clip_sigmas * c.band.sigma;
+        for (std::size_t i = 0; i < lr.mask.data.size(); ++i)
+            if (double(smoothed.data[i]) < lo || double(smoothed.data[i]) > hi)
+                lr.mask.data[i] = 0;
+    }
     return std::move(lr.mask);
 }
 
@@ -1093,6 +1102,7 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
                 under.push_back(smooth.data[i]);
         const auto [median, sd] = detail::median_and_robust_sd(std::move(under));
         cx.band = {median, sd};
+        cx.band_measured = true;
     }
 
     core::LabelImage3D heart;
@@ -1412,7 +1422,8 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
                   {"window_growth_per_mm", params.window_growth_per_mm},
                   {"window_margin_mm", params.window_margin_mm},
                   {"seed_window_mm", params.seed_window_mm},
-                  {"seed_window_hold", params.seed_window_hold}});
+                  {"seed_window_hold", params.seed_window_hold},
+                  {"layer_clip_sigmas", params.layer_clip_sigmas}});
     if (params.use_dome_contact)
         non_negative({{"contact_smoothing_mm", params.contact_smoothing_mm},
                       {"contact_sigmas", params.contact_sigmas},

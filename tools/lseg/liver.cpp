@@ -233,6 +233,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
             "components",
             std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
                 (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
+                (p.use_kmeans && p.layer_clip_sigmas > 0 ? "layer-clip " : "") +
                 (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
                 (p.use_dome_contact ? "dome-contact " : "") + (p.use_heart_model && ct ? "heart-model " : "") +
                 (p.use_tissue_stop ? "tissue-stop " : "") +
@@ -367,6 +368,12 @@ Command add_liver(CLI::App& lseg)
                   "default only where its 1 mm smoothing spans half a pixel: pixels up to 2 mm)");
     cmd->add_flag("--no-piece-growth", o->no_piece_growth,
                   "Ablation: keep the separate pieces of a contour that grow past the liver's widest slice");
+    cmd->add_option("--layer-clip", o->params.layer_clip_sigmas,
+                    "Clip each propagated slice's K-means layer to the liver's grey levels under the seed slice's "
+                    "contour, median +- this many robust sd (2.5 gains on pixels coarser than 0.8 mm and on 3 mm "
+                    "scans, costs 0.7 mm grids 1-3 points); 0 = off")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 100.0));
     cmd->add_option("--piece-growth", o->params.piece_growth_limit,
                     "Drop a separate piece past the widest slice whose area exceeds this many times its predecessors'")
         ->capture_default_str()
