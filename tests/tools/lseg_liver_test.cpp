@@ -269,7 +269,7 @@ TEST(LsegLiver, RefusesWithAClearMessageAndNoOutput)
                             "--vessel-cut-midline-reach -1", "--growth-slack -1", "--growth-slack 30", "--seed-window 0", "--tissue-trim-keep 0", "--vessel-inlet-closing 0",
                             "--heart-wall -1", "--heart-wall 60",
                             "--surface-lesion-closing 0", "--dark-rim-level 0", "--dark-rim-level 1.5",
-                            "--wall-margin -1", "--wall-margin 40"}) {
+                            "--wall-margin -1", "--wall-margin 40", "--layer-clip -1"}) {
         r = run_lseg("liver " + q(dir / "flat.mhd") + " -o " + q(dir / "h.h5") + " " + bad, dir);
         EXPECT_EQ(r.exit_code, 1) << bad << ": " << r.err;
         const std::string option = std::string(bad).substr(0, std::string(bad).find(' '));
@@ -329,6 +329,31 @@ TEST(LsegLiver, DarkRimTakesTheFatRingOfTheCoarseCt)
     EXPECT_GE(std::stod(on.params[1]), 10.0 * std::stod(off.params[1]));
     EXPECT_GE(on.dice, off.dice + 0.007);
     EXPECT_LE(on.asd, off.asd - 0.2);
+}
+
+// The same CT with the layer clip (--layer-clip 2.5): the K-means soft-tissue layer of its slices
+// runs from about -20 to 110 HU (the fat partial volume and everything brighter than the liver's
+// 49), the seed contour's band 20-78. Measured (no shape memory): outside the reference 7 002 ->
+// 6 412 voxels, Dice 0.9027 -> 0.9088, ASD 2.47 -> 2.27 mm, score 34.4 -> 38.5. Bounds: half of
+// the Dice and ASD gains; the provenance names the component and the setting.
+TEST(LsegLiver, LayerClipTakesThePartialVolumeOffTheCoarseCt)
+{
+    const fs::path ct = test::data_dir() / "ct-small";
+    LOBE_REQUIRE_PATH(ct / "ct.mhd");
+    const auto dir = test::scratch_dir();
+    const auto keys = {"components", "liver.layer-clip"};
+    const EvaluatedRun on = ct_small_run(ct, dir, "on", " --layer-clip 2.5", keys);
+    const EvaluatedRun off = ct_small_run(ct, dir, "off", "", keys);
+    ASSERT_EQ(on.params.size(), 2u);
+    ASSERT_EQ(off.params.size(), 2u);
+    std::cerr << "ct-small: layer clip " << off.params[1] << " -> " << on.params[1] << ", Dice " << off.dice << " -> "
+              << on.dice << ", ASD " << off.asd << " -> " << on.asd << " mm\n";
+    EXPECT_NE(on.params[0].find("layer-clip"), std::string::npos) << on.params[0];
+    EXPECT_EQ(off.params[0].find("layer-clip"), std::string::npos) << off.params[0];
+    EXPECT_EQ(std::stod(on.params[1]), 2.5);
+    EXPECT_EQ(std::stod(off.params[1]), 0.0);
+    EXPECT_GE(on.dice, off.dice + 0.003);
+    EXPECT_LE(on.asd, off.asd - 0.1);
 }
 
 // The real MR at hand (../shared/data/mr-small: T1, 117 x 91 x 20, 3 mm; its reference is
