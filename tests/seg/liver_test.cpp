@@ -375,7 +375,9 @@ TEST(LiverPipeline, DomeContactKeepsTheHeartOut)
 // minimum was chosen on a sweep of 21 phantoms (liver.md). Measured, 300 -> 150 mm²: heart voxels
 // 35 752 -> 4 322, SLIVER07 score 68.2 -> 85.2. Bounds: half the heart voxels, half the score's gain.
 // Since energy competition's repeat is trimmed (2026-12-07, later): heart voxels 48 788 -> 4 029,
-// score 63.9 -> 87.3.
+// score 63.9 -> 87.3. Since the layer clip (2026-12-07, night), which keeps part of the heart wall
+// out of the snake's start on its own: heart voxels 16 578 -> 4 435, score 81.3 -> 87.6; the
+// score's bound is half of that gain.
 TEST(LiverPipeline, BrokenDomeContactRingStillCounts)
 {
     const Case a = phantom_case({1.4, 1.4, 5.0}, 3), b = phantom_case({2.0, 2.0, 2.5}, 4);
@@ -393,7 +395,7 @@ TEST(LiverPipeline, BrokenDomeContactRingStillCounts)
     std::cerr << "broken ring: heart voxels " << heart(before.mask) << " -> " << heart(now.mask) << ", score "
               << s_before << " -> " << s_now << "\n";
     EXPECT_LT(double(heart(now.mask)), 0.5 * double(heart(before.mask)));
-    EXPECT_GE(s_now, s_before + 8.5);
+    EXPECT_GE(s_now, s_before + 3.1);
 }
 
 // The heart model (LiverParams::use_heart_model): at thick slices the diaphragm over the dome is
@@ -928,6 +930,9 @@ TEST(LiverPipeline, SurfaceLesionNextToTheRibsIsLiver)
 // trimmed to the first run (the default) slice 11's contour holds less fat (under the stop's 35 %)
 // and, without the growing-pieces rule, the kidney is followed down; with that rule (the
 // default) the run still ends at slice 12 (liver.md, "What energy competition's repeat keeps").
+// Run without the layer clip too: the clip keeps the fat out of slice 11's start contour, and the
+// stop's scenario is again gone (without the growing-pieces rule the kidney is followed to slice
+// 0; with it, the default, the sweep's score on this grid rises, 73.9 -> 75.6).
 TEST(LiverPipeline, TissueStopEndsAtTheLiversTip)
 {
     const Case c = phantom_case({1.0, 1.0, 3.0}, 4);
@@ -935,6 +940,7 @@ TEST(LiverPipeline, TissueStopEndsAtTheLiversTip)
     seg::LiverParams p;
     p.drop_growing_pieces = false;
     p.snake.repeat_keep_voxels = -1;
+    p.layer_clip_sigmas = 0.0;
     const seg::LiverResult r = seg::segment_liver(c.hu, p);
     p.use_tissue_stop = false;
     const seg::LiverResult off = seg::segment_liver(c.hu, p);
@@ -1071,21 +1077,20 @@ TEST(LiverPipeline, WallMarginDropsTheLayerUnderTheRibs)
 // The layer clip (1.2 x 1.2 x 5 mm, seed 17): at thick slices the soft-tissue K-means layer of a
 // propagated slice is 2.4-4.4 times wider than the seed contour's band (105 +- 4 HU here: the
 // partial volume of the liver with its neighbours widens the cluster), and holds the contrast-
-// filled IVC, the stomach and the kidney's pole where they touch the liver. Clipped to that band
-// (median +- 2.5 robust sd, the tissue stop's), the shrunk previous contour loses them before the
-// snake starts. Measured (2026-12-07): outside the liver 17 576 -> 9 482 voxels (IVC, stomach and
-// kidney 8 314 -> 1 333; heart wall 5 361 -> 4 416), missed 7 497 -> 6 798, Dice 0.9371 -> 0.9584,
-// score 61.1 -> 77.1. Bounds: half of the gains; the three organs at under 0.4 of what they were
-// (measured 0.16); the clip is off by default (it costs the 0.7 mm grids 1-3 points,
-// docs/algorithms/liver.md, "The layer clip").
+// filled IVC, the stomach and the kidney's pole where they touch the liver. The previous contour's
+// kept pieces start the snake only within that band (median +- 2.5 robust sd, the tissue
+// stop's), so those organs are no longer in the snake's start. Measured (2026-12-07, off -> on):
+// outside the liver 17 576 -> 10 964 voxels (IVC, stomach and kidney 8 314 -> 2 592), missed
+// 7 497 -> 6 713, Dice 0.9371 -> 0.9550, score 61.1 -> 73.3. Bounds: half of the gains; the
+// three organs at under half of what they were (measured 0.31).
 TEST(LiverPipeline, LayerClipKeepsThickSlicesInsideTheLiver)
 {
     const Case c = phantom_case({1.2, 1.2, 5.0}, 17);
     seg::LiverParams p;
-    ASSERT_EQ(p.layer_clip_sigmas, 0.0);
-    const seg::LiverResult off = seg::segment_liver(c.hu, p);
-    p.layer_clip_sigmas = 2.5;
+    ASSERT_EQ(p.layer_clip_sigmas, 2.5);
     const seg::LiverResult on = seg::segment_liver(c.hu, p);
+    p.layer_clip_sigmas = 0.0;
+    const seg::LiverResult off = seg::segment_liver(c.hu, p);
     const auto missed = [&](const core::LabelImage3D& m) { return test::voxels_missed(m, c.truth); };
     const auto outside = [&](const core::LabelImage3D& m) { return test::voxels_outside(m, c.truth); };
     const auto organs = [&](const core::LabelImage3D& m) {
@@ -1098,11 +1103,11 @@ TEST(LiverPipeline, LayerClipKeepsThickSlicesInsideTheLiver)
               << outside(off.mask) << " -> " << outside(on.mask) << " (IVC, stomach and kidney " << organs(off.mask)
               << " -> " << organs(on.mask) << "), Dice " << m_off.dice << " -> " << m_on.dice << ", score " << s_off
               << " -> " << s_on << "\n";
-    EXPECT_LT(double(organs(on.mask)), 0.4 * double(organs(off.mask)));
-    EXPECT_LT(outside(on.mask) + 4000.0, outside(off.mask));
-    EXPECT_LT(missed(on.mask), missed(off.mask) + 500.0);
-    EXPECT_GE(m_on.dice, m_off.dice + 0.01);
-    EXPECT_GE(s_on, s_off + 8.0);
+    EXPECT_LT(double(organs(on.mask)), 0.5 * double(organs(off.mask)));
+    EXPECT_LT(outside(on.mask) + 3300.0, outside(off.mask));
+    EXPECT_LT(missed(on.mask), missed(off.mask) + 400.0);
+    EXPECT_GE(m_on.dice, m_off.dice + 0.009);
+    EXPECT_GE(s_on, s_off + 6.0);
     p.layer_clip_sigmas = -1.0;
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
     p.layer_clip_sigmas = std::numeric_limits<double>::quiet_NaN();

@@ -331,19 +331,20 @@ TEST(LsegLiver, DarkRimTakesTheFatRingOfTheCoarseCt)
     EXPECT_LE(on.asd, off.asd - 0.2);
 }
 
-// The same CT with the layer clip (--layer-clip 2.5): the K-means soft-tissue layer of its slices
-// runs from about -20 to 110 HU (the fat partial volume and everything brighter than the liver's
-// 49), the seed contour's band 20-78. Measured (no shape memory): outside the reference 7 002 ->
-// 6 412 voxels, Dice 0.9027 -> 0.9088, ASD 2.47 -> 2.27 mm, score 34.4 -> 38.5. Bounds: half of
-// the Dice and ASD gains; the provenance names the component and the setting.
+// The same CT and the layer clip: the K-means soft-tissue layer of its slices runs from about -20
+// to 110 HU (the fat partial volume and everything brighter than the liver's 49), the seed
+// contour's band 20-78; the snakes start only from the previous contour's pixels within the band.
+// Measured (no shape memory, --layer-clip 0 -> the default 2.5): Dice 0.9027 -> 0.9074, ASD 2.47
+// -> 2.37 mm (the score 34.4 -> 33.9: RVD moves the other way). Bounds: half of the Dice and
+// ASD gains; the provenance names the component and the setting.
 TEST(LsegLiver, LayerClipTakesThePartialVolumeOffTheCoarseCt)
 {
     const fs::path ct = test::data_dir() / "ct-small";
     LOBE_REQUIRE_PATH(ct / "ct.mhd");
     const auto dir = test::scratch_dir();
     const auto keys = {"components", "liver.layer-clip"};
-    const EvaluatedRun on = ct_small_run(ct, dir, "on", " --layer-clip 2.5", keys);
-    const EvaluatedRun off = ct_small_run(ct, dir, "off", "", keys);
+    const EvaluatedRun on = ct_small_run(ct, dir, "on", "", keys);
+    const EvaluatedRun off = ct_small_run(ct, dir, "off", " --layer-clip 0", keys);
     ASSERT_EQ(on.params.size(), 2u);
     ASSERT_EQ(off.params.size(), 2u);
     std::cerr << "ct-small: layer clip " << off.params[1] << " -> " << on.params[1] << ", Dice " << off.dice << " -> "
@@ -352,8 +353,8 @@ TEST(LsegLiver, LayerClipTakesThePartialVolumeOffTheCoarseCt)
     EXPECT_EQ(off.params[0].find("layer-clip"), std::string::npos) << off.params[0];
     EXPECT_EQ(std::stod(on.params[1]), 2.5);
     EXPECT_EQ(std::stod(off.params[1]), 0.0);
-    EXPECT_GE(on.dice, off.dice + 0.003);
-    EXPECT_LE(on.asd, off.asd - 0.1);
+    EXPECT_GE(on.dice, off.dice + 0.0023);
+    EXPECT_LE(on.asd, off.asd - 0.045);
 }
 
 // The real MR at hand (../shared/data/mr-small: T1, 117 x 91 x 20, 3 mm; its reference is
@@ -400,8 +401,9 @@ TEST(LsegLiver, SegmentsTheRealMrAsMr)
 // diaphragm and intercostal muscle (about 40 HU against the liver's 96) between the liver and the
 // ribs, which the dark rim drops. Both runs leave out the wall margin, which takes part of the same
 // layer afterwards (with it: 78.9 -> 80.5). Measured (no shape memory): SLIVER07 score 71.3 -> 76.0,
-// 7 800 voxels dropped, 91 % of the voxels the final masks differ by outside the reference. Bounds:
-// a gain of at least 2 points and a score of at least 74, a fifth of the drop and 80 % outside.
+// 7 800 voxels dropped, 91 % of the voxels the final masks differ by outside the reference; since
+// the layer clip (2026-12-07, night) 74.8 -> 78.0, 6 303 dropped, 79.5 % outside. Bounds: a gain
+// of at least 2 points and a score of at least 74, a fifth of the drop and 70 % outside.
 TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
 {
     const fs::path ct = test::data_dir() / "ct-dicom-jpeg2000";
@@ -416,7 +418,7 @@ TEST(LsegLiver, DarkRimDropsTheMuscleUnderTheRibsOfTheRealCt)
     EXPECT_GE(o.on, o.off + 2.0);
     EXPECT_GE(o.on, 74.0);
     EXPECT_GE(o.count, 1500.0);
-    EXPECT_GE(double(o.removed_outside), 0.8 * double(o.removed));
+    EXPECT_GE(double(o.removed_outside), 0.7 * double(o.removed));
 }
 
 // The same CT: after the dark rim, a strip of muscle and partial volume a few pixels wide is
@@ -455,15 +457,17 @@ TEST(LsegLiver, WallMarginDropsTheWallUnderTheRibsOfTheRealCt)
 // Since the iteration bound is scaled to the pixel (47 iterations here; 2026-12-07, evening):
 // first slice 10 -> 0, Dice 0.842 -> 0.888, ASD 4.03 -> 2.87 mm; since the dark rim's coarse-pixel
 // rule too: Dice 0.852 -> 0.903, ASD 3.69 -> 2.47 mm. Bounds: the first slice within two of the
-// volume's, about half of the Dice and ASD gains of the first of these.
+// volume's, about half of the Dice and ASD gains of the first of these. Both runs are without the
+// layer clip (2026-12-07, night): it keeps the fat out of the snakes' start contours, the leak
+// never reaches the stop's 35 % and the propagation reaches slice 1 without the trim.
 TEST(LsegLiver, TissueTrimFindsTheLowerLiverOfTheRealCt)
 {
     const fs::path ct = test::data_dir() / "ct-small";
     LOBE_REQUIRE_PATH(ct / "ct.mhd");
     const auto dir = test::scratch_dir();
     const auto keys = {"result.first_slice", "result.tissue_trim_slices"};
-    const EvaluatedRun on = ct_small_run(ct, dir, "on", "", keys);
-    const EvaluatedRun off = ct_small_run(ct, dir, "off", " --no-tissue-trim", keys);
+    const EvaluatedRun on = ct_small_run(ct, dir, "on", " --layer-clip 0", keys);
+    const EvaluatedRun off = ct_small_run(ct, dir, "off", " --no-tissue-trim --layer-clip 0", keys);
     ASSERT_EQ(on.params.size(), 2u);
     ASSERT_EQ(off.params.size(), 2u);
     std::cerr << "ct-small: first slice " << off.params[0] << " -> " << on.params[0] << " (trimmed " << on.params[1]

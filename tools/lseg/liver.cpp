@@ -369,9 +369,9 @@ Command add_liver(CLI::App& lseg)
     cmd->add_flag("--no-piece-growth", o->no_piece_growth,
                   "Ablation: keep the separate pieces of a contour that grow past the liver's widest slice");
     cmd->add_option("--layer-clip", o->params.layer_clip_sigmas,
-                    "Clip each propagated slice's K-means layer to the liver's grey levels under the seed slice's "
-                    "contour, median +- this many robust sd (2.5 gains on pixels coarser than 0.8 mm and on 3 mm "
-                    "scans, costs 0.7 mm grids 1-3 points); 0 = off")
+                    "Each propagated slice's snake starts from the previous contour's pieces only where they lie "
+                    "within the liver's grey levels under the seed slice's contour (median +- this many robust sd); "
+                    "0 = off")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 100.0));
     cmd->add_option("--piece-growth", o->params.piece_growth_limit,

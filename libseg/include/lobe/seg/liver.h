@@ -110,13 +110,13 @@ struct LiverParams {
     double erosion_mm = 2.0;        //!< the previous slice's contour shrinks by this before it
                                     //!< starts the next slice's snake (snakes expand)
     double layer_alpha = 2.5;       //!< liver-like band: estimated liver grey ± alpha * sigma
-    //! The K-means layer of a propagated slice is clipped to the tissue stop's band (the grey
-    //! levels under the seed slice's contour, median ± this many robust sd): the soft-tissue layer
-    //! is 2.4-4.4 times wider than that band on every grid measured, and takes in the partial
-    //! volume with fat and the neighbours brighter than the liver. 0 = off (the default: it gains
-    //! on pixels coarser than 0.8 mm and on ct-small, and costs the 0.7 mm grids 1-3 points;
-    //! docs/algorithms/liver.md, "The layer clip"). 2.5 = tissue_stop_sigmas, the measured setting.
-    double layer_clip_sigmas = 0.0;
+    //! The layer clip: a propagated slice's snake starts from the previous contour's kept pieces
+    //! only where they lie within the seed contour's band (median ± this many robust sd, as the
+    //! tissue stop reads it); the pieces themselves are judged on the whole K-means layer, which
+    //! is 2.4-4.4 times wider and holds the partial volume with fat and the brighter neighbours
+    //! touching the liver (the IVC, a kidney's pole, the stomach). 0 = off
+    //! (docs/algorithms/liver.md, "The layer clip").
+    double layer_clip_sigmas = 2.5;
     double min_area_mm2 = 100.0;    //!< stop rule: a slice whose liver is smaller ends the liver
     double min_seed_area_mm2 = 25.0; //!< pieces of the shrunk contour smaller than this are dropped
     double keep_piece_fraction = 0.2; //!< pieces of the cut previous contour smaller than this
