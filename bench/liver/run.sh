@@ -56,7 +56,7 @@ variants=("full|--shape $work/shape.h5"
           "no wall margin|--shape $work/shape.h5 --no-wall-margin"
           "no seed-window widening|--shape $work/shape.h5 --no-seed-window-widening"
           "no iteration scaling|--shape $work/shape.h5 --no-iteration-scaling"
-          "with the layer clip|--shape $work/shape.h5 --layer-clip 2.5"
+          "no layer clip|--shape $work/shape.h5 --layer-clip 0"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"
