@@ -783,9 +783,9 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         // The kept pieces start the snake only where they hold the liver's own grey levels (the
         // layer clip): the K-means layer is 2.4-4.4 times wider than the seed contour's band and
         // holds the partial volume with fat and the brighter neighbours (the IVC, a kidney's pole)
-        // where they touch the liver. The pieces are judged on the whole layer first: clipped
-        // before, an organ that took the liver's place falls into speckle that the piece rule no
-        // longer recognises (the 0.7 mm grids lost 1-3 points that way).
+        // where they touch the liver. The pieces are judged on the whole layer first: a layer
+        // clipped before the rule falls into more, smaller pieces, and the rule's choice of them
+        // cost the 0.7 mm grids 1-3 points (docs/algorithms/liver.md, "The layer clip").
         if (p.layer_clip_sigmas > 0.0 && c.band_measured) {
             const double lo = c.band.mean - p.layer_clip_sigmas * c.band.sigma;
             const double hi = c.band.mean + p.layer_clip_sigmas * c.band.sigma;
