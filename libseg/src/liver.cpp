@@ -1001,7 +1001,8 @@ void report(const Context& c, const LiverSliceReport& r)
 //! The snapped mask of a job, on the whole slice.
 core::LabelImage3D run_snap(const LiverParams& p, const SnapJob& job)
 {
-    SnakeResult r = snap_to_edges(job.image, job.mask, p.snake, p.snap);
+    SnakeResult r = snap_to_edges(job.image, job.mask, p.snake,
+                                  liver_snap_params(p, job.grid.spacing[0], job.grid.spacing[1]));
     if (!job.excluded.data.empty())
         for (std::size_t i = 0; i < r.mask.data.size(); ++i)
             r.mask.data[i] = r.mask.data[i] && !job.excluded.data[i];
@@ -1089,6 +1090,11 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     result.mask = core::LabelImage3D(hu.geometry(), 0);
     result.seed_slice = seed_slice;
     result.propagation_iterations = propagation_iteration_bound(params, hu.spacing[0], hu.spacing[1]);
+    if (params.use_edge_snap) {
+        const SnapParams sp = liver_snap_params(params, hu.spacing[0], hu.spacing[1]);
+        result.snap_band = sp.band;
+        result.snap_iterations = sp.iterations;
+    }
 
     SliceOutcome first = segment_slice(c, seed_slice, seed, nullptr, 0.0);
     report(c, first.report);
@@ -1371,6 +1377,29 @@ int propagation_iteration_bound(const LiverParams& params, double pixel_x_mm, do
     return static_cast<int>(std::clamp(std::lround(scaled), 1L, long(std::numeric_limits<int>::max())));
 }
 
+SnapParams liver_snap_params(const LiverParams& params, double pixel_x_mm, double pixel_y_mm)
+{
+    const double ref = params.snap_reference_pixel_mm;
+    if (params.snap.band < 1 || params.snap.iterations < 1 || !std::isfinite(ref) || ref < 0.0)
+        throw core::InvalidInputError("segment_liver: the edge snap's band and iterations must be >= 1 and "
+                                      "snap_reference_pixel_mm finite and >= 0 (are " +
+                                      std::to_string(params.snap.band) + ", " + std::to_string(params.snap.iterations) +
+                                      ", " + std::to_string(ref) + ")");
+    if (!(pixel_x_mm > 0.0 && std::isfinite(pixel_x_mm) && pixel_y_mm > 0.0 && std::isfinite(pixel_y_mm)))
+        throw core::InvalidInputError("segment_liver: the pixel spacing must be finite and > 0 (is " +
+                                      std::to_string(pixel_x_mm) + " x " + std::to_string(pixel_y_mm) + " mm)");
+    SnapParams s = params.snap;
+    if (ref == 0.0)
+        return s;
+    const double scale = ref / std::sqrt(pixel_x_mm * pixel_y_mm);
+    const auto scaled = [&](int v) {
+        return static_cast<int>(std::clamp(std::lround(v * scale), 1L, long(std::numeric_limits<int>::max())));
+    };
+    s.band = scaled(s.band);
+    s.iterations = scaled(s.iterations);
+    return s;
+}
+
 SnakeParams default_liver_snake()
 {
     SnakeParams p;
@@ -1429,6 +1458,8 @@ LiverResult segment_head_up(const core::ImageF& hu, const LiverParams& params, c
                   {"seed_window_mm", params.seed_window_mm},
                   {"seed_window_hold", params.seed_window_hold},
                   {"layer_clip_sigmas", params.layer_clip_sigmas}});
+    if (params.use_edge_snap)
+        (void)liver_snap_params(params, hu.spacing[0], hu.spacing[1]); // refuses a bad band or reference
     if (params.use_dome_contact)
         non_negative({{"contact_smoothing_mm", params.contact_smoothing_mm},
                       {"contact_sigmas", params.contact_sigmas},

@@ -1244,6 +1244,41 @@ TEST(LiverPipeline, IterationBoundScalesWithThePixel)
     EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
 }
 
+// The edge snap's reach in mm (LiverParams::snap_reference_pixel_mm): its band and iterations,
+// set on 0.7 mm pixels, scale by 0.7 mm over the pixel's geometric mean, rounded, at least 1;
+// nonsense is refused, by segment_liver too before any work.
+TEST(LiverPipeline, SnapReachScalesWithThePixel)
+{
+    seg::LiverParams p;
+    const auto both = [&](double px, double py) {
+        const seg::SnapParams s = seg::liver_snap_params(p, px, py);
+        EXPECT_EQ(s.gvf_iterations, p.snap.gvf_iterations);
+        EXPECT_EQ(s.gate_level, p.snap.gate_level);
+        return std::pair<int, int>(s.band, s.iterations);
+    };
+    EXPECT_EQ(both(0.7, 0.7), std::make_pair(3, 20));
+    EXPECT_EQ(both(0.977, 0.977), std::make_pair(2, 14)); // ct-dicom: 2.15 and 14.3
+    EXPECT_EQ(both(3.0, 3.0), std::make_pair(1, 5));      // 0.7 and 4.7
+    EXPECT_EQ(both(0.35, 0.35), std::make_pair(6, 40));
+    EXPECT_EQ(both(0.7, 2.8), std::make_pair(2, 10));     // geometric mean 1.4 mm
+    EXPECT_EQ(both(1000.0, 1000.0), std::make_pair(1, 1));
+    p.snap_reference_pixel_mm = 0.0;
+    EXPECT_EQ(both(3.0, 3.0), std::make_pair(3, 20));
+    EXPECT_THROW(seg::liver_snap_params(p, 0.0, 1.0), core::InvalidInputError);
+    EXPECT_THROW(seg::liver_snap_params(p, 1.0, std::numeric_limits<double>::infinity()), core::InvalidInputError);
+    p.snap_reference_pixel_mm = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_THROW(seg::liver_snap_params(p, 1.0, 1.0), core::InvalidInputError);
+    p = seg::LiverParams{};
+    p.snap.iterations = 0;
+    EXPECT_THROW(seg::liver_snap_params(p, 1.0, 1.0), core::InvalidInputError);
+    p = seg::LiverParams{};
+    p.snap_reference_pixel_mm = -0.7;
+    const Case c = phantom_case({2.8, 2.8, 5.0}, 2);
+    EXPECT_THROW(seg::segment_liver(c.hu, p), core::InvalidInputError);
+    p.use_edge_snap = false; // the snap's settings are not read without it
+    EXPECT_NO_THROW(seg::segment_liver(c.hu, p));
+}
+
 TEST(LiverPipeline, ModalityIsDetectedFromAir)
 {
     const Case c = phantom_case({2.8, 2.8, 5.0}, 2);

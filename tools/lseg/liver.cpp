@@ -34,7 +34,7 @@ struct LiverOptions {
          no_vessel_inlets = false, no_dark_rim = false, no_heart_model = false,
          no_surface_lesions = false, no_vessel_cut_pieces = false, no_tissue_trim = false, no_wall_margin = false,
          no_seed_window_widening = false, no_repeat_trim = false, no_iteration_scaling = false,
-         dark_rim_keep_touching = false;
+         dark_rim_keep_touching = false, no_snap_scaling = false;
     seg::LiverParams params;
 };
 
@@ -129,6 +129,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         p.propagation_reference_pixel_mm = 0.0;
     if (o.dark_rim_keep_touching)
         p.dark_rim.touching_min_smoothing_px = 0.0;
+    if (o.no_snap_scaling)
+        p.snap_reference_pixel_mm = 0.0;
     p.post.convention =
         o.convention == "parenchyma" ? seg::LiverConvention::Parenchyma : seg::LiverConvention::Sliver07;
     p.modality = o.modality == "ct" ? seg::Modality::Ct : o.modality == "mr" ? seg::Modality::Mr : seg::Modality::Auto;
@@ -213,6 +215,8 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
         param("result.slices_recovered", std::to_string(recovered));
         param("result.slices_iteration_bound", std::to_string(bounded));
         param("result.propagation_iterations", std::to_string(r.propagation_iterations));
+        param("result.snap_band", std::to_string(r.snap_band));
+        param("result.snap_iterations", std::to_string(r.snap_iterations));
         param("result.slices_above_contact", std::to_string(above_contact));
         param("result.tissue_stop_slices", not_liver);
         param("result.tissue_trim_slices", trimmed);
@@ -244,6 +248,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
                 (p.fill_surface_lesions && p.post.convention == seg::LiverConvention::Sliver07 ? "surface-lesions "
                                                                                                  : "") +
                 (p.use_3d_pass ? "3d-pass " : "") + (p.propagation_reference_pixel_mm > 0 ? "iteration-scaling " : "") +
+                (p.use_edge_snap && p.snap_reference_pixel_mm > 0 ? "snap-scaling " : "") +
                 (p.use_rib_cage && ct && p.wall_margin_mm > 0 ? "wall-margin " : "") + (p.layer_holds_pressure ? "layer-stop " : "") +
                 (p.snake.competition == seg::CompetitionMode::Off ? ""
                  : p.snake.repeat_keep_voxels >= 0                ? "competition repeat-trim"
@@ -399,12 +404,16 @@ Command add_liver(CLI::App& lseg)
     cmd->add_flag("--no-edge-snap", o->no_edge_snap,
                   "Ablation: stack the snake's contours as they are, not moved on to the edge ridge");
     cmd->add_option("--snap-band", o->params.snap.band,
-                    "Edge snap: the field reaches this many voxels (chessboard) from an edge")
+                    "Edge snap: the field reaches this many voxels (chessboard) from an edge, on 0.7 mm pixels "
+                    "(scaled to the pixel unless --no-snap-scaling)")
         ->capture_default_str()
         ->check(CLI::Range(1, 20));
-    cmd->add_option("--snap-iterations", o->params.snap.iterations, "Edge snap: level-set iterations")
+    cmd->add_option("--snap-iterations", o->params.snap.iterations,
+                    "Edge snap: level-set iterations, on 0.7 mm pixels (scaled to the pixel unless --no-snap-scaling)")
         ->capture_default_str()
         ->check(CLI::Range(1, 1000));
+    cmd->add_flag("--no-snap-scaling", o->no_snap_scaling,
+                  "Ablation: the edge snap's band and iterations in voxels as given, whatever the pixel size");
     cmd->add_flag("--layer-stop", o->layer_stop,
                   "Experiment: the snake's pressure acts only inside the liver-like layer on propagated slices");
     cmd->add_flag("--envelope-stop", o->envelope_stop,

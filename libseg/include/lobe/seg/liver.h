@@ -219,7 +219,13 @@ struct LiverParams {
     //! unsnapped contour. Without it CDSG leaves the contour 1-2 voxels inside the ridge
     //! (docs/algorithms/liver.md, "The edge snap").
     bool use_edge_snap = true;
-    SnapParams snap;
+    SnapParams snap;                //!< band and iterations as on snap_reference_pixel_mm pixels
+    //! The edge snap's reach is in voxels (its band, and its iterations, which move the front about
+    //! a voxel per two): `snap.band` and `snap.iterations` are set on pixels of this size and
+    //! scaled by it over the in-plane pixel, rounded, at least 1 (3 and 20 at 0.7 mm, 2 and 14 at
+    //! 0.98 mm, 1 and 5 at 3 mm; liver_snap_params). 0 = in voxels as given
+    //! (docs/algorithms/liver.md, "The edge snap's reach in mm").
+    double snap_reference_pixel_mm = 0.7;
     bool envelope_holds_pressure = false; //!< experiment: on a propagated slice the pressure acts
                                           //!< only inside the growth envelope (the shape memory's, or
                                           //!< max_growth_per_mm), so the front stops at it
@@ -295,6 +301,12 @@ struct LiverParams {
 //! finite and > 0.
 int propagation_iteration_bound(const LiverParams& params, double pixel_x_mm, double pixel_y_mm);
 
+//! The edge snap's parameters on pixels of `pixel_x_mm` x `pixel_y_mm`: `params.snap` with its band
+//! and iterations scaled by `snap_reference_pixel_mm` over the pixel (the geometric mean),
+//! rounded, at least 1 (as given when the reference is 0). \throw InvalidInputError for a band or
+//! iteration count below 1, a negative or non-finite reference, or pixels not finite and > 0.
+SnapParams liver_snap_params(const LiverParams& params, double pixel_x_mm, double pixel_y_mm);
+
 //! What `segment_liver` returns.
 struct LiverResult {
     core::LabelImage3D mask;        //!< 1 = liver, on the input's grid
@@ -315,6 +327,7 @@ struct LiverResult {
     std::size_t surface_lesion_voxels = 0; //!< voxels added by LiverParams::fill_surface_lesions
     std::size_t wall_margin_voxels = 0;   //!< voxels dropped by LiverParams::wall_margin_mm
     int propagation_iterations = 0;       //!< the level-set bound the propagated slices had
+    int snap_band = 0, snap_iterations = 0; //!< the edge snap's reach on this grid (0: no snap)
     double dark_rim_level = 0;            //!< ... below this smoothed grey level (0: not applied)
     double dark_rim_neighbour = 0;        //!< ... set from this median of the darker tissue outside
     bool dark_rim_touching_kept = true;   //!< ... keeping the dark pixels touching the liver (pixels up to 2 mm)
