@@ -14,7 +14,7 @@ inputs = sorted({r["input"] for r in rows}, key=lambda s: [r["input"] for r in r
 variants = sorted({r["variant"] for r in rows}, key=lambda s: [r["variant"] for r in rows].index(s))
 markers = "os^vD<>Px*"
 # The default cycle's grey (its 8th colour) would read as the inputs' legend markers, drawn grey.
-colours = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"] if c != "#7f7f7f"] + ["#000080", "#8b4513", "#ff1493", "#00ced1", "#556b2f", "#b8860b", "#808000", "#4b0082", "#dc143c", "#2f4f4f", "#7fff00", "#bc8f8f", "#ff8c00", "#e9967a"]
+colours = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"] if c != "#7f7f7f"] + ["#000080", "#8b4513", "#ff1493", "#00ced1", "#556b2f", "#b8860b", "#808000", "#4b0082", "#dc143c", "#2f4f4f", "#7fff00", "#bc8f8f", "#ff8c00", "#e9967a", "#9acd32"]
 fig, axes = plt.subplots(1, 2, figsize=(15, 5.4))
 for ax, key, label in ((axes[0], "score", "SLIVER07 score (0-100; human 75)"), (axes[1], "dice", "Dice")):
     for vi, v in enumerate(variants):

@@ -57,6 +57,7 @@ variants=("full|--shape $work/shape.h5"
           "no seed-window widening|--shape $work/shape.h5 --no-seed-window-widening"
           "no iteration scaling|--shape $work/shape.h5 --no-iteration-scaling"
           "no layer clip|--shape $work/shape.h5 --layer-clip 0"
+          "no snap scaling|--shape $work/shape.h5 --no-snap-scaling"
           "parenchyma convention|--shape $work/shape.h5 --convention parenchyma")
 
 csv="$out/liver_ablation.csv"
