@@ -153,7 +153,9 @@ double precision_in(const core::LabelImage3D& m, const core::LabelImage3D& truth
 // 19.2 with the first form of the dark rim; 0.848, 5.3 mm and +28.5 % before the edge snap, growing pieces and vessel inlets; the kidney under the
 // liver leaks in; the heart above the dome did too, Dice 0.82 and ASD 6.6 mm, until the dome contact closed it off).
 // Since energy competition's repeat is trimmed (2026-12-07, later): Dice 0.932, ASD 1.87 mm, RVD
-// 9.0 %, score 53.8.
+// 9.0 %, score 53.8. Since the layer clip and the edge snap's reach in mm (2026-12-07, night):
+// Dice 0.951, ASD 1.18 mm, RVD +3.1 %, score 71.7; the bounds below were raised with them, the
+// score's to ten points under the measured one.
 TEST(LiverPipeline, CoarsePhantomIsFound)
 {
     const Case c = phantom_case({1.4, 1.4, 5.0}, 3);
@@ -166,14 +168,14 @@ TEST(LiverPipeline, CoarsePhantomIsFound)
     const double score = seg::sliver_score(m).total;
     std::cerr << "coarse phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd
               << " %, SLIVER07 score " << score << "\n";
-    EXPECT_GE(m.dice, 0.82);
-    EXPECT_LE(m.surface.average, 6.5);
-    EXPECT_LE(std::abs(m.rvd), 50.0);
-    // The score is low at 5 mm slices (the kidney's volume and distance errors); a bound under
-    // the measured 40.3, which the heart leak of before the dome contact (Dice 0.82) falls below.
-    // Scores move by several points when a build changes one slice's outcome (liver.md), hence
-    // the margin.
-    EXPECT_GE(score, 30.0);
+    EXPECT_GE(m.dice, 0.93);
+    EXPECT_LE(m.surface.average, 2.0);
+    EXPECT_LE(std::abs(m.rvd), 10.0);
+    // The score is lower at 5 mm slices (the kidney's volume and distance errors); a bound ten
+    // points under the measured 71.7, which the heart and kidney leaks of the earlier forms fall
+    // below. Scores move by several points when a build changes one slice's outcome (liver.md),
+    // hence the margin.
+    EXPECT_GE(score, 61.0);
     // The propagation stops below the start slice (the heart/lung slice).
     EXPECT_LT(r.last_slice, r.start.slice);
 }
@@ -285,7 +287,9 @@ TEST(LiverPipeline, ACoronalStackGivesTheSameLiver)
 // and 3.9 mm before the edge snap, growing pieces and vessel inlets; 0.875 and 4.9 mm before the
 // dome contact). The score's bound is ten points under the measured one (see the test above).
 // Since energy competition's repeat is trimmed (2026-12-07, later): Dice 0.966, ASD 1.02 mm, RVD
-// 3.3 %, score 72.3.
+// 3.3 %, score 72.3. Since the layer clip and the edge snap's reach in mm (2026-12-07, night):
+// Dice 0.967, ASD 0.95 mm, RVD -0.3 %, score 77.1 (above the second rater's 75 on a phantom used
+// for nothing else); the bounds below were raised with them.
 TEST(LiverPipeline, FinePhantomIsFound)
 {
     const Case c = phantom_case({0.9, 0.9, 3.0}, 5);
@@ -294,9 +298,9 @@ TEST(LiverPipeline, FinePhantomIsFound)
     const double score = seg::sliver_score(m).total;
     std::cerr << "fine phantom: Dice " << m.dice << ", ASD " << m.surface.average << " mm, RVD " << m.rvd
               << " %, SLIVER07 score " << score << "\n";
-    EXPECT_GE(m.dice, 0.88);
-    EXPECT_LE(m.surface.average, 5.0);
-    EXPECT_GE(score, 59.0);
+    EXPECT_GE(m.dice, 0.95);
+    EXPECT_LE(m.surface.average, 1.5);
+    EXPECT_GE(score, 67.0);
     // Every slice of the propagation is reported once, in ascending order.
     for (std::size_t i = 1; i < r.slices.size(); ++i)
         EXPECT_EQ(r.slices[i].slice, r.slices[i - 1].slice + 1);
