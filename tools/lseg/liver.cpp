@@ -237,7 +237,7 @@ int run_liver(LiverOptions& o, const tools::Progress& progress, tools::RunRecord
             "components",
             std::string(p.use_start_slice && ct ? "start-slice " : "") + (ct ? "" : "mr-contrast-map ") +
                 (r.bias_corrected ? "bias-field " : "") + (p.use_kmeans ? "kmeans " : "") +
-                (p.use_kmeans && p.layer_clip_sigmas > 0 ? "layer-clip " : "") +
+                (p.layer_clip_sigmas > 0 ? "layer-clip " : "") +
                 (p.use_rib_cage && ct ? "rib-cage " : "") + (memory && p.use_shape_memory ? "shape-memory " : "") +
                 (p.use_dome_contact ? "dome-contact " : "") + (p.use_heart_model && ct ? "heart-model " : "") +
                 (p.use_tissue_stop ? "tissue-stop " : "") +
