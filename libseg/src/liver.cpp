@@ -414,6 +414,8 @@ core::LabelImage3D cut_lines(const core::ImageF& img, const EdgeMapParams& ep)
 struct Tissue {
     double mean = 0;
     double sigma = 1;
+    double low(double k) const { return mean - k * sigma; }  //!< k standard deviations below the mean
+    double high(double k) const { return mean + k * sigma; } //!< k standard deviations above the mean
 };
 
 Tissue tissue_under(const core::ImageF& smoothed, const core::LabelImage3D& m)
@@ -437,7 +439,7 @@ Tissue tissue_under(const core::ImageF& smoothed, const core::LabelImage3D& m)
 core::LabelImage3D band_of(const core::ImageF& smoothed, const Tissue& t, double alpha)
 {
     core::LabelImage3D out(smoothed.geometry(), 0);
-    const double lo = t.mean - alpha * t.sigma, hi = t.mean + alpha * t.sigma;
+    const double lo = t.low(alpha), hi = t.high(alpha);
     for (std::size_t i = 0; i < out.data.size(); ++i)
         out.data[i] = double(smoothed.data[i]) >= lo && double(smoothed.data[i]) <= hi ? 1 : 0;
     return out;
@@ -778,7 +780,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         if (p.keep_vessel_cut_pieces && count(dropped) > 0)
             out.report.vessel_cut_mm2 =
                 px * double(restore_vessel_cut_pieces(init_w, dropped, rim, crop(templ, ww), smooth_w,
-                                                      c.band.mean + p.tissue_stop_sigmas * c.band.sigma,
+                                                      c.band.high(p.tissue_stop_sigmas),
                                                       p.vessel_cut_reach_mm, p.vessel_cut_midline_reach_mm));
         // The kept pieces start the snake only where they hold the liver's own grey levels (the
         // layer clip): the K-means layer is 2.4-4.4 times wider than the seed contour's band and
@@ -787,8 +789,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         // clipped before the rule falls into more, smaller pieces, and the rule's choice of them
         // cost the 0.7 mm grids 1-3 points (docs/algorithms/liver.md, "The layer clip").
         if (p.layer_clip_sigmas > 0.0 && c.band_measured) {
-            const double lo = c.band.mean - p.layer_clip_sigmas * c.band.sigma;
-            const double hi = c.band.mean + p.layer_clip_sigmas * c.band.sigma;
+            const double lo = c.band.low(p.layer_clip_sigmas), hi = c.band.high(p.layer_clip_sigmas);
             for (std::size_t i = 0; i < init_w.data.size(); ++i)
                 if (double(smooth_w.data[i]) < lo || double(smooth_w.data[i]) > hi)
                     init_w.data[i] = 0;
@@ -920,8 +921,7 @@ SliceOutcome segment_slice(const Context& c, int k, const core::LabelImage3D& st
         // crossed into something else at the liver's end (bowel with gas and fat, a kidney).
         const core::ImageF smooth_w = gaussian_smooth(crop(img, w), 1.0);
         const core::LabelImage3D mask_w = crop(out.mask, w);
-        const double lo = c.band.mean - p.tissue_stop_sigmas * c.band.sigma;
-        const double hi = c.band.mean + p.tissue_stop_sigmas * c.band.sigma;
+        const double lo = c.band.low(p.tissue_stop_sigmas), hi = c.band.high(p.tissue_stop_sigmas);
         std::size_t in = 0, outside = 0;
         for (std::size_t i = 0; i < mask_w.data.size(); ++i)
             if (mask_w.data[i]) {
@@ -1119,7 +1119,7 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
     core::LabelImage3D heart;
     if (params.use_heart_model && cx.heart_known) {
         const auto th = Clock::now();
-        heart = heart_model(cx, seed_slice + 1, cx.band.mean + params.vessel_inlet_sigmas * cx.band.sigma);
+        heart = heart_model(cx, seed_slice + 1, cx.band.high(params.vessel_inlet_sigmas));
         result.heart_model_voxels = count(heart);
         result.timings.emplace_back("heart model", seconds_since(th));
         if (c.progress) {
@@ -1252,11 +1252,11 @@ LiverResult propagate(const Context& c, const core::LabelImage3D& seed, int seed
         for (const auto& s : result.slices)
             ks.push_back(s.slice);
         result.vessel_inlet_voxels = fill_vessel_inlets(cx, result.mask, ks, params.vessel_inlet_closing_mm,
-                                                        cx.band.mean + params.vessel_inlet_sigmas * cx.band.sigma);
+                                                        cx.band.high(params.vessel_inlet_sigmas));
         result.timings.emplace_back("vessel inlets", seconds_since(tv));
     }
     const bool lesions = params.fill_surface_lesions && params.post.convention == LiverConvention::Sliver07;
-    const double band_low = cx.band.mean - std::abs(params.tissue_stop_sigmas) * cx.band.sigma;
+    const double band_low = cx.band.low(std::abs(params.tissue_stop_sigmas));
     DarkRimResult rim;
     if (params.trim_dark_rim || lesions) {
         // The contour's rim may hold a layer of darker tissue that it crossed at a weak edge
@@ -1360,6 +1360,24 @@ core::ImageF mr_liver_contrast(const core::ImageF& mr, double liver_value, doubl
     return out;
 }
 
+namespace {
+
+void check_pixel(double pixel_x_mm, double pixel_y_mm)
+{
+    if (!(pixel_x_mm > 0.0 && std::isfinite(pixel_x_mm) && pixel_y_mm > 0.0 && std::isfinite(pixel_y_mm)))
+        throw core::InvalidInputError("segment_liver: the pixel spacing must be finite and > 0 (is " +
+                                      std::to_string(pixel_x_mm) + " x " + std::to_string(pixel_y_mm) + " mm)");
+}
+
+// A count scaled to the pixel, rounded, at least 1. The callers keep their own expression order:
+// at exact halves (1.6 mm pixels for the bound, 0.6 mm for the snap) the order decides the rounding.
+int rounded_count(double scaled)
+{
+    return static_cast<int>(std::clamp(std::lround(scaled), 1L, long(std::numeric_limits<int>::max())));
+}
+
+} // namespace
+
 int propagation_iteration_bound(const LiverParams& params, double pixel_x_mm, double pixel_y_mm)
 {
     const double ref = params.propagation_reference_pixel_mm;
@@ -1368,13 +1386,10 @@ int propagation_iteration_bound(const LiverParams& params, double pixel_x_mm, do
                                       "propagation_reference_pixel_mm finite and >= 0 (are " +
                                       std::to_string(params.propagation_max_iterations) + ", " + std::to_string(ref) +
                                       ")");
-    if (!(pixel_x_mm > 0.0 && std::isfinite(pixel_x_mm) && pixel_y_mm > 0.0 && std::isfinite(pixel_y_mm)))
-        throw core::InvalidInputError("segment_liver: the pixel spacing must be finite and > 0 (is " +
-                                      std::to_string(pixel_x_mm) + " x " + std::to_string(pixel_y_mm) + " mm)");
+    check_pixel(pixel_x_mm, pixel_y_mm);
     if (ref == 0.0)
         return params.propagation_max_iterations;
-    const double scaled = params.propagation_max_iterations * ref / std::sqrt(pixel_x_mm * pixel_y_mm);
-    return static_cast<int>(std::clamp(std::lround(scaled), 1L, long(std::numeric_limits<int>::max())));
+    return rounded_count(params.propagation_max_iterations * ref / std::sqrt(pixel_x_mm * pixel_y_mm));
 }
 
 SnapParams liver_snap_params(const LiverParams& params, double pixel_x_mm, double pixel_y_mm)
@@ -1385,18 +1400,13 @@ SnapParams liver_snap_params(const LiverParams& params, double pixel_x_mm, doubl
                                       "snap_reference_pixel_mm finite and >= 0 (are " +
                                       std::to_string(params.snap.band) + ", " + std::to_string(params.snap.iterations) +
                                       ", " + std::to_string(ref) + ")");
-    if (!(pixel_x_mm > 0.0 && std::isfinite(pixel_x_mm) && pixel_y_mm > 0.0 && std::isfinite(pixel_y_mm)))
-        throw core::InvalidInputError("segment_liver: the pixel spacing must be finite and > 0 (is " +
-                                      std::to_string(pixel_x_mm) + " x " + std::to_string(pixel_y_mm) + " mm)");
+    check_pixel(pixel_x_mm, pixel_y_mm);
     SnapParams s = params.snap;
     if (ref == 0.0)
         return s;
     const double scale = ref / std::sqrt(pixel_x_mm * pixel_y_mm);
-    const auto scaled = [&](int v) {
-        return static_cast<int>(std::clamp(std::lround(v * scale), 1L, long(std::numeric_limits<int>::max())));
-    };
-    s.band = scaled(s.band);
-    s.iterations = scaled(s.iterations);
+    s.band = rounded_count(s.band * scale);
+    s.iterations = rounded_count(s.iterations * scale);
     return s;
 }
 
