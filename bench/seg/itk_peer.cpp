@@ -166,7 +166,10 @@ ItkRun itk_gac_d(const core::ImageF& image, const core::LabelImage3D& init, cons
     const double phi_seconds = seconds_since(t_phi);
 
     const auto t1 = Clock::now();
-    const auto [alpha, beta] = sigmoid_parameters<D>(gradmag->GetOutput(), phi0.GetPointer(), p);
+    const auto [alpha, beta] =
+        p.statistics_mask
+            ? sigmoid_parameters<D>(gradmag->GetOutput(), initial_phi<D>(*p.statistics_mask, nullptr).GetPointer(), p)
+            : sigmoid_parameters<D>(gradmag->GetOutput(), phi0.GetPointer(), p);
     using Sigmoid = itk::SigmoidImageFilter<FImage<D>, FImage<D>>;
     auto sigmoid = Sigmoid::New();
     sigmoid->SetInput(gradmag->GetOutput());
@@ -196,7 +199,8 @@ ItkRun itk_gac_d(const core::ImageF& image, const core::LabelImage3D& init, cons
     run.total_seconds = seconds_since(t0);
     run.notes = "diffusion dt " + num(dt) + " x" + std::to_string(p.diffusion_iterations) + " cond " +
                 num(p.diffusion_conductance) + "; sigma " + num(p.sigma_mm) + " mm; sigmoid alpha " +
-                num(alpha) + " beta " + num(beta) + "; prop/curv/adv " +
+                num(alpha) + " beta " + num(beta) + (p.statistics_mask ? " (statistics from the eroded reference)" : "") +
+                "; prop/curv/adv " +
                 num(p.propagation_scaling) + "/" + num(p.curvature_scaling) + "/" +
                 num(p.advection_scaling) + "; rms " + num(gac->GetRMSChange()) + " (max " +
                 num(p.max_rms_error) + ")";

@@ -56,6 +56,10 @@ struct ItkGacParams {
     //! the example's propagation 2 with a 90th percentile leaked (Dice 0.63 on phantom k59).
     double k1_percentile = 0.60;
     double shell_mm = 20.0;
+    //! The mask whose inside and shell give K2 and K1 (null: `init`). A seeded start's ball
+    //! lies deep inside the liver, so its shell holds no edge: the seeded rows pass the eroded
+    //! reference here, i.e. the sigmoid of the unseeded run on the same slice.
+    const core::LabelImage3D* statistics_mask = nullptr;
     double propagation_scaling = 1.0; //!< the ITK example uses 2 (see k1_percentile)
     double curvature_scaling = 1.0;   //!< the ITK example's values
     double advection_scaling = 1.0;

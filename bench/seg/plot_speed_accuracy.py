@@ -1,11 +1,13 @@
 #!/usr/bin/python3
 """Chart of seg_bench's CSV: time (log scale) against Dice and against ASD.
 
-    /usr/bin/python3 bench/seg/plot_speed_accuracy.py [CSV [PNG]]
+    /usr/bin/python3 bench/seg/plot_speed_accuracy.py [CSV [PNG [TITLE]]]
 
 Defaults: docs/benchmarks/seg_speed_accuracy.csv -> docs/benchmarks/seg_speed_accuracy.png.
 One marker per method, one colour per input; only rows with a segmentation (Dice present) and
 the 2-thread runs are drawn (the 1-thread rows of the scaling study would double every point).
+GGVF's field-iteration sweep (methods GGVF-f<N>, the seeded starts) is drawn as small hollow
+squares joined to the GGVF point of the same input by a dashed line.
 Uses Debian's python3-matplotlib only (no pandas).
 """
 import csv
@@ -43,7 +45,9 @@ def main():
 
     inputs = list(dict.fromkeys(r["input"] for r in rows))
     methods = [m for m in MARKERS if any(r["method"] == m for r in rows)]
-    methods += [m for m in dict.fromkeys(r["method"] for r in rows) if m not in methods]
+    methods += [m for m in dict.fromkeys(r["method"] for r in rows)
+                if m not in methods and not m.startswith("GGVF-f")]
+    sweep_shown = any(r["method"].startswith("GGVF-f") for r in rows)
     cmap = plt.get_cmap("tab10")
     colour = {name: cmap(i % 10) for i, name in enumerate(inputs)}
 
@@ -55,6 +59,10 @@ def main():
                 continue
             m = r["method"]
             c = colour[r["input"]]
+            if m.startswith("GGVF-f"):
+                ax.scatter(float(r["total_seconds"]), float(r[key]), s=30, marker="s", facecolors="none",
+                           edgecolors=c, linewidths=1.0)
+                continue
             marker = MARKERS.get(m, "v")
             size = 90 if marker == "*" else 55
             x, y = float(r["total_seconds"]), float(r[key])
@@ -63,6 +71,12 @@ def main():
             else:
                 ax.scatter(x, y, s=size, marker=marker, facecolors=c if m in FILLED else "none", edgecolors=c,
                            linewidths=1.4)
+        for i in inputs:  # GGVF's sweep, cheapest first
+            sweep = sorted((float(r["total_seconds"]), float(r[key])) for r in rows
+                           if r["input"] == i and r[key] and (r["method"] == "GGVF" or r["method"].startswith("GGVF-f")))
+            if len(sweep) > 1:
+                ax.plot([p[0] for p in sweep], [p[1] for p in sweep], linestyle="--", linewidth=0.8,
+                        color=colour[i], alpha=0.7)
         ax.set_xscale("log")
         ax.set_xlabel("total time per run [s] (log scale; 2 threads)")
         ax.set_ylabel(label)
@@ -72,12 +86,17 @@ def main():
     method_handles = [Line2D([], [], linestyle="none", marker=MARKERS.get(m, "v"), color="black",
                              markerfacecolor="black" if m in FILLED else "none", markersize=8, label=m)
                       for m in methods]
+    if sweep_shown:
+        method_handles.append(Line2D([], [], linestyle="--", marker="s", color="black", markerfacecolor="none",
+                                     markersize=6, linewidth=0.8, label="GGVF, more field iterations"))
     input_handles = [Line2D([], [], linestyle="none", marker="o", color=colour[i], markersize=8, label=i)
                      for i in inputs]
-    axes[0].legend(handles=method_handles, title="method (filled: lobe, hollow: ITK)", loc="lower right",
+    axes[0].legend(handles=method_handles, title="method (filled: lobe, hollow: ITK)", loc="best",
                    fontsize=8)
-    axes[1].legend(handles=input_handles, title="input", loc="upper right", fontsize=8)
-    fig.suptitle("libseg active contours against ITK: speed and accuracy (same inputs, same initial mask)")
+    axes[1].legend(handles=input_handles, title="input", loc="best", fontsize=8)
+    title = sys.argv[3] if len(sys.argv) > 3 else \
+        "libseg active contours against ITK: speed and accuracy (same inputs, same initial mask)"
+    fig.suptitle(title)
     fig.tight_layout()
     tmp = dst + ".tmp.png"
     fig.savefig(tmp, dpi=110)

@@ -1,6 +1,7 @@
 // Speed against accuracy of libseg's active contours (issue 3), with ITK as the outside peer.
 //
 //   seg_bench [--out DIR] [--quick] [--data DIR] [--inputs SUBSTR,..] [--methods SUBSTR,..] [--reps N] [--dump DIR]
+//             [--name STEM]
 //
 // For every input (lphantom axial slices and the phantom volume; ct-small's liver, one slice and
 // the volume; the 512 x 512 ct-dicom-jpeg2000 series when present) it runs, from ONE shared
@@ -8,6 +9,9 @@
 //   lobe CDSG, lobe CDSG with a template (2-D: the neighbouring slice's reference), lobe GGVF,
 //   lobe GAC, ITK GAC, ITK GVF snake; and, time only, the GVF/GGVF fields of libseg and ITK's
 //   GradientVectorFlowImageFilter at the same iteration count.
+// Asked for by name (--inputs seed), each 2-D slice also runs from a seeded start (input name +
+// "-seed": a 5 mm ball at the reference's deepest voxel, one click in the liver's middle), with
+// GGVF's field iterations swept from the default to 8000 (methods GGVF-f<N>).
 // Accuracy: Dice and ASD from lobe::seg::evaluate_segmentation against the reference, each
 // cross-checked by an independent computation (bench/seg/itk_peer.cpp); a disagreement is
 // written into the notes. Writes OUT/seg_speed_accuracy.csv (rows appended to a .partial file
@@ -17,6 +21,7 @@
 
 #include "lobe/core/any_image.h"
 #include "lobe/io/image_io.h"
+#include "lobe/seg/distance_transform.h"
 #include "lobe/seg/edge_map.h"
 #include "lobe/seg/gvf.h"
 #include "lobe/seg/metrics.h"
@@ -50,6 +55,10 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 constexpr double kErosionMm = 10.0; // the shared initialisation: reference eroded by this distance
+constexpr double kSeedRadiusMm = 5.0; // the seeded start: a ball of lseg snake's default --seed-radius
+// The seeded start's GGVF field iterations: the default (a third of the row) cannot carry the
+// edges' pull from the liver's middle to a seed 40-70 mm away; these chart what more would buy.
+const std::vector<int> kSeededGgvfIterations = {500, 1000, 2000, 4000, 8000};
 
 struct Options {
     fs::path out = fs::path(LOBE_SOURCE_DIR) / "docs" / "benchmarks";
@@ -58,6 +67,9 @@ struct Options {
     int reps = 3; // repetitions of each 2-D run (the median time is reported); 3-D runs once
     std::vector<std::string> inputs, methods; // substring filters (empty = all)
     fs::path dump;                            // when set: every result mask (and input) as .mha here
+    std::string name = "seg_speed_accuracy";  // the CSV's file name without .csv
+    seg::SnakeParams lobe;                    // libseg's snakes' parameters (--lobe KEY=VALUE,...)
+    std::string lobe_spec;                    // ... as given, for the notes
     bench::ItkGacParams itk_gac;              // the ITK peer's parameters (--itk KEY=VALUE,...)
     bench::ItkGvfParams itk_gvf;
 };
@@ -92,6 +104,42 @@ bool parse_itk(const std::string& spec, Options& opt)
     return true;
 }
 
+// --lobe KEY=VALUE,...: libseg's snake parameters other than the defaults (for experiments; the
+// recorded runs use the defaults). Keys: curv (ε), sigma (edge σ, mm), gk (g's k), bandgvf (CDSG's
+// band GGVF iterations), delta1, pk and power (CDSG's pressure stopping k and exponent), low and
+// high (CDSG's binary edges), band, cfl, tol, checks (convergence), leak (leak checks), iters.
+bool parse_lobe(const std::string& spec, Options& opt)
+{
+    std::stringstream ss(spec);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        const auto eq = item.find('=');
+        if (eq == std::string::npos)
+            return false;
+        const std::string key = item.substr(0, eq);
+        const double v = std::atof(item.substr(eq + 1).c_str());
+        auto& p = opt.lobe;
+        if (key == "curv") p.curvature_weight = v;
+        else if (key == "sigma") p.edge.sigma_mm = v;
+        else if (key == "gk") p.edge.stopping_k = v;
+        else if (key == "bandgvf") p.band_gvf_iterations = int(v);
+        else if (key == "delta1") p.cdsg.edge_band = int(v);
+        else if (key == "pk") p.cdsg.pressure_stopping_k = v;
+        else if (key == "power") p.cdsg.pressure_stopping_power = v;
+        else if (key == "low") p.cdsg.edges.low = v;
+        else if (key == "high") p.cdsg.edges.high = v;
+        else if (key == "band") p.level_set.band_voxels = int(v);
+        else if (key == "cfl") p.level_set.cfl = v;
+        else if (key == "tol") p.level_set.convergence_tolerance = v;
+        else if (key == "checks") p.level_set.convergence_checks = int(v);
+        else if (key == "leak") p.level_set.leak_checks = int(v);
+        else if (key == "iters") p.level_set.max_iterations = int(v);
+        else return false;
+    }
+    opt.lobe_spec = spec;
+    return true;
+}
+
 struct Input {
     std::string name;
     core::ImageF image;
@@ -101,6 +149,9 @@ struct Input {
     bool scaling = false;                      // also run the methods on one thread
     bool itk_gvf_snake = true;                 // ITK GVF snake (2-D, or small 3-D)
     bool gvf_fields = false;                   // time the GVF fields alone
+    bool seeded = false;                       // init = a ball around the reference's deepest point
+    core::LabelImage3D eroded;                 // seeded: the unseeded init (ITK's sigmoid statistics)
+    std::string init_note;                     // how the init was made (seeded inputs)
 };
 
 struct Row {
@@ -242,6 +293,35 @@ core::LabelImage3D phantom_liver(const core::LabelImage3D& labels)
     return m;
 }
 
+// The seeded start: a ball of kSeedRadiusMm around the reference's deepest voxel (the largest
+// distance to the outside, spacing-aware), i.e. one click in the middle of the liver. The ball
+// keeps the reference's geometry; only its voxels inside the reference count (a thin liver).
+core::LabelImage3D seed_ball(const core::LabelImage3D& ref, std::string& note)
+{
+    core::LabelImage3D outside(ref.geometry(), 0);
+    for (std::size_t i = 0; i < ref.data.size(); ++i)
+        outside.data[i] = ref.data[i] ? 0 : 1;
+    const core::ImageF depth = seg::euclidean_distance(outside);
+    std::size_t best = 0;
+    for (std::size_t i = 0; i < depth.data.size(); ++i)
+        if (ref.data[i] && depth.data[i] > depth.data[best])
+            best = i;
+    const int nx = ref.size[0], ny = ref.size[1];
+    const int ci = int(best % std::size_t(nx)), cj = int((best / std::size_t(nx)) % std::size_t(ny)),
+              ck = int(best / (std::size_t(nx) * std::size_t(ny)));
+    core::LabelImage3D ball(ref.geometry(), 0);
+    for (int k = 0; k < ref.size[2]; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const double dx = (i - ci) * ref.spacing[0], dy = (j - cj) * ref.spacing[1], dz = (k - ck) * ref.spacing[2];
+                if (dx * dx + dy * dy + dz * dz <= kSeedRadiusMm * kSeedRadiusMm && ref.at(i, j, k))
+                    ball.at(i, j, k) = 1;
+            }
+    note = "seed (" + std::to_string(ci) + "," + std::to_string(cj) + "," + std::to_string(ck) + "), " +
+           num(depth.data[best], 3) + " mm deep, ball " + num(kSeedRadiusMm, 2) + " mm";
+    return ball;
+}
+
 bool wanted(const std::vector<std::string>& filters, const std::string& name)
 {
     if (filters.empty())
@@ -254,10 +334,15 @@ bool wanted(const std::vector<std::string>& filters, const std::string& name)
 bool finish_input(Input& in)
 {
     in.init = bench::erode_by_distance(in.ref, kErosionMm);
+    if (in.seeded) {
+        in.eroded = std::move(in.init);
+        in.init = seed_ball(in.ref, in.init_note);
+    }
     const std::size_t ni = count(in.init), nr = count(in.ref);
-    std::fprintf(stderr, "input %s: %s, spacing %.3g x %.3g x %.3g mm, reference %zu voxels, init %zu voxels (%.1f%%)\n",
+    std::fprintf(stderr, "input %s: %s, spacing %.3g x %.3g x %.3g mm, reference %zu voxels, init %zu voxels (%.1f%%)%s%s\n",
                  in.name.c_str(), dims_of(in.image).c_str(), in.image.spacing[0], in.image.spacing[1],
-                 in.image.spacing[2], nr, ni, nr ? 100.0 * double(ni) / double(nr) : 0.0);
+                 in.image.spacing[2], nr, ni, nr ? 100.0 * double(ni) / double(nr) : 0.0,
+                 in.init_note.empty() ? "" : ", ", in.init_note.c_str());
     if (ni == 0) {
         std::fprintf(stderr, "  skipped: the reference eroded by %.0f mm is empty\n", kErosionMm);
         return false;
@@ -273,7 +358,14 @@ void add_slices_and_volume(std::vector<Input>& inputs, const Options& opt, const
     for (const auto& [k, what] : slices) {
         Input in;
         in.name = prefix + "-k" + std::to_string(k) + (what.empty() ? "" : "-" + what);
-        if (!wanted(opt.inputs, in.name))
+        const bool plain = wanted(opt.inputs, in.name);
+        // The seeded start runs only when asked for by name (a filter holding "seed"), so that the
+        // default run and its chart stay the eroded start's.
+        const bool seeded_wanted =
+            !opt.quick && std::any_of(opt.inputs.begin(), opt.inputs.end(), [&](const std::string& f) {
+                return f.find("seed") != std::string::npos && (in.name + "-seed").find(f) != std::string::npos;
+            });
+        if (!plain && !seeded_wanted)
             continue;
         in.image = slice(ct, k);
         in.ref = slice(liver, k);
@@ -285,8 +377,19 @@ void add_slices_and_volume(std::vector<Input>& inputs, const Options& opt, const
         in.scaling = first && !opt.quick;
         in.gvf_fields = true;
         first = false;
-        if (finish_input(in))
+        // The same slice from one click in the liver's middle (the seeded start): the field must
+        // reach the front from the edges, which is where the thesis says CDSG beats GGVF.
+        Input seeded;
+        seeded.name = in.name + "-seed";
+        seeded.image = in.image;
+        seeded.ref = in.ref;
+        seeded.templ = in.templ;
+        seeded.seeded = true;
+        seeded.itk_gvf_snake = false; // ITK's GVF at the default count fails like libseg's GGVF there
+        if (plain && finish_input(in))
             inputs.push_back(std::move(in));
+        if (seeded_wanted && finish_input(seeded))
+            inputs.push_back(std::move(seeded));
     }
     if (volume) {
         Input in;
@@ -454,6 +557,8 @@ void run_input(const Input& in, const Options& opt, CsvWriter& csv)
         row.total = t.total;
         row.iterations = t.iterations;
         row.notes = t.notes;
+        if (in.seeded)
+            row.notes += "; " + in.init_note;
         if (t.has_mask) {
             row.converged = t.converged ? "true" : "false";
             evaluate(row, t.mask, in.ref);
@@ -480,11 +585,15 @@ void run_input(const Input& in, const Options& opt, CsvWriter& csv)
         std::string name;
         seg::SnakeMethod method;
         const core::LabelImage3D* templ;
+        int gvf_iterations = 0; // 0: the default (GGVF: a third of the longest row)
     };
     std::vector<LobeCase> lobe_cases = {{"CDSG", seg::SnakeMethod::Cdsg, nullptr}};
     if (in.templ)
         lobe_cases.push_back({"CDSG+template", seg::SnakeMethod::Cdsg, &*in.templ});
     lobe_cases.push_back({"GGVF", seg::SnakeMethod::Ggvf, nullptr});
+    if (in.seeded)
+        for (int n : kSeededGgvfIterations)
+            lobe_cases.push_back({"GGVF-f" + std::to_string(n), seg::SnakeMethod::Ggvf, nullptr, n});
     lobe_cases.push_back({"GAC", seg::SnakeMethod::Gac, nullptr});
 
     for (int threads : thread_counts) {
@@ -494,8 +603,9 @@ void run_input(const Input& in, const Options& opt, CsvWriter& csv)
             set_threads(threads);
             try {
                 auto t = repeat(reps, [&] {
-                    seg::SnakeParams p;
+                    seg::SnakeParams p = opt.lobe;
                     p.method = lc.method;
+                    p.gvf.iterations = lc.gvf_iterations;
                     const auto t0 = Clock::now();
                     auto r = seg::segment_snake(in.image, in.init, p, lc.templ);
                     Timed out;
@@ -507,6 +617,12 @@ void run_input(const Input& in, const Options& opt, CsvWriter& csv)
                     out.mask = std::move(r.mask);
                     if (lc.templ)
                         out.notes = "template = reference of the neighbouring slice";
+                    if (!opt.lobe_spec.empty())
+                        out.notes += std::string(out.notes.empty() ? "" : "; ") + "lobe " + opt.lobe_spec;
+                    if (lc.gvf_iterations > 0)
+                        out.notes += std::string(out.notes.empty() ? "" : "; ") + "GGVF field iterations " +
+                                     std::to_string(lc.gvf_iterations);
+
                     if (r.runs > 1 || r.competition_used)
                         out.notes += std::string(out.notes.empty() ? "" : "; ") + "runs " + std::to_string(r.runs) +
                                      (r.competition_used ? ", competition G=0.3" : "");
@@ -522,7 +638,10 @@ void run_input(const Input& in, const Options& opt, CsvWriter& csv)
             set_threads(threads);
             try {
                 auto t = repeat(reps, [&] {
-                    auto r = bench::itk_gac(in.image, in.init, opt.itk_gac);
+                    bench::ItkGacParams gp = opt.itk_gac;
+                    if (in.seeded)
+                        gp.statistics_mask = &in.eroded;
+                    auto r = bench::itk_gac(in.image, in.init, gp);
                     return Timed{std::move(r.mask), r.field_seconds, r.evolve_seconds, r.total_seconds,
                                  r.iterations,      r.converged,     true,             r.notes};
                 });
@@ -628,7 +747,7 @@ void run_input(const Input& in, const Options& opt, CsvWriter& csv)
 int usage(const char* argv0, int code)
 {
     std::fprintf(code ? stderr : stdout,
-                 "usage: %s [--out DIR] [--quick] [--data DIR] [--inputs SUBSTR,..] [--methods SUBSTR,..] [--reps N] [--dump DIR]\n"
+                 "usage: %s [--out DIR] [--quick] [--data DIR] [--inputs SUBSTR,..] [--methods SUBSTR,..] [--reps N] [--lobe K=V,..] [--itk K=V,..] [--dump DIR] [--name STEM]\n"
                  "  --out DIR      where seg_speed_accuracy.csv goes (default: docs/benchmarks of the source tree)\n"
                  "  --quick        phantom slice k = 59 and ct-small (slice and volume) only; one repetition\n"
                  "  --data DIR     the shared data folder holding ct-small/ (default: $LOBE_DATA_DIR or ../shared/data)\n"
@@ -637,7 +756,10 @@ int usage(const char* argv0, int code)
                  "  --reps N       repetitions of each 2-D run, the fastest reported (default 3; 1 with --quick)\n"
                  "  --itk K=V,..   ITK peer parameters: k1 (sigmoid K1 percentile), shell (mm), prop, curv, adv, rms,\n"
                  "                 iters (GAC), gvfcurv, gvfadv (GVF snake); defaults in bench/seg/itk_peer.h\n"
-                 "  --dump DIR     also write every input, reference, init and result mask as .mha into DIR\n",
+                 "  --lobe K=V,..  libseg snake parameters (experiments): curv, sigma, gk, bandgvf, delta1, pk, power,\n"
+                 "                 low, high, band, cfl, tol, checks, leak, iters (see parse_lobe)\n"
+                 "  --dump DIR     also write every input, reference, init and result mask as .mha into DIR\n"
+                 "  --name STEM    the CSV's file name without .csv (default seg_speed_accuracy)\n",
                  argv0);
     return code;
 }
@@ -665,11 +787,16 @@ int main(int argc, char** argv)
             opt.out = value();
         else if (a == "--data")
             opt.data = value();
-        else if (a == "--itk") {
+        else if (a == "--lobe") {
+            if (!parse_lobe(value(), opt))
+                return usage(argv[0], 1);
+        } else if (a == "--itk") {
             if (!parse_itk(value(), opt))
                 return usage(argv[0], 1);
         } else if (a == "--dump")
             opt.dump = value();
+        else if (a == "--name")
+            opt.name = value();
         else if (a == "--quick")
             opt.quick = true;
         else if (a == "--inputs")
@@ -697,7 +824,7 @@ int main(int argc, char** argv)
                      load_average().c_str(), omp_get_max_threads());
         const auto t0 = Clock::now();
         const auto inputs = make_inputs(opt);
-        CsvWriter csv(opt.out / "seg_speed_accuracy.csv");
+        CsvWriter csv(opt.out / (opt.name + ".csv"));
         for (const auto& in : inputs) {
             std::fprintf(stderr, "== %s (%s), load average %s\n", in.name.c_str(), dims_of(in.image).c_str(),
                          load_average().c_str());
@@ -705,7 +832,7 @@ int main(int argc, char** argv)
         }
         csv.finish();
         std::fprintf(stderr, "seg_bench: done in %.0f s, load average %s; wrote %s\n", seconds_since(t0),
-                     load_average().c_str(), (opt.out / "seg_speed_accuracy.csv").string().c_str());
+                     load_average().c_str(), (opt.out / (opt.name + ".csv")).string().c_str());
     } catch (const std::exception& e) {
         std::fprintf(stderr, "seg_bench: %s\n", e.what());
         return 2;
