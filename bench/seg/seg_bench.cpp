@@ -74,18 +74,25 @@ struct Options {
     bench::ItkGvfParams itk_gvf;
 };
 
-// --itk KEY=VALUE,...: k1 (percentile), shell (mm), prop, curv, adv, rms, iters (GAC);
-// gvfcurv, gvfadv (the GVF snake's curvature and advection scaling).
-bool parse_itk(const std::string& spec, Options& opt)
+// Calls set(key, value) for each KEY=VALUE of a comma-separated spec; false at the first item
+// without '=' or that set refuses (an unknown key).
+template <class Set> bool parse_key_values(const std::string& spec, Set&& set)
 {
     std::stringstream ss(spec);
     std::string item;
     while (std::getline(ss, item, ',')) {
         const auto eq = item.find('=');
-        if (eq == std::string::npos)
+        if (eq == std::string::npos || !set(item.substr(0, eq), std::atof(item.substr(eq + 1).c_str())))
             return false;
-        const std::string key = item.substr(0, eq);
-        const double v = std::atof(item.substr(eq + 1).c_str());
+    }
+    return true;
+}
+
+// --itk KEY=VALUE,...: k1 (percentile), shell (mm), prop, curv, adv, rms, iters (GAC);
+// gvfcurv, gvfadv (the GVF snake's curvature and advection scaling).
+bool parse_itk(const std::string& spec, Options& opt)
+{
+    const bool ok = parse_key_values(spec, [&](const std::string& key, double v) {
         auto& g = opt.itk_gac;
         if (key == "k1") g.k1_percentile = v;
         else if (key == "shell") g.shell_mm = v;
@@ -97,7 +104,10 @@ bool parse_itk(const std::string& spec, Options& opt)
         else if (key == "gvfcurv") opt.itk_gvf.curvature_scaling = v;
         else if (key == "gvfadv") opt.itk_gvf.advection_scaling = v;
         else return false;
-    }
+        return true;
+    });
+    if (!ok)
+        return false;
     opt.itk_gvf.speed = opt.itk_gac;
     opt.itk_gvf.max_rms_error = opt.itk_gac.max_rms_error;
     opt.itk_gvf.snake_iterations = opt.itk_gac.iterations;
@@ -110,14 +120,7 @@ bool parse_itk(const std::string& spec, Options& opt)
 // high (CDSG's binary edges), band, cfl, tol, checks (convergence), leak (leak checks), iters.
 bool parse_lobe(const std::string& spec, Options& opt)
 {
-    std::stringstream ss(spec);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-        const auto eq = item.find('=');
-        if (eq == std::string::npos)
-            return false;
-        const std::string key = item.substr(0, eq);
-        const double v = std::atof(item.substr(eq + 1).c_str());
+    const bool ok = parse_key_values(spec, [&](const std::string& key, double v) {
         auto& p = opt.lobe;
         if (key == "curv") p.curvature_weight = v;
         else if (key == "sigma") p.edge.sigma_mm = v;
@@ -135,9 +138,10 @@ bool parse_lobe(const std::string& spec, Options& opt)
         else if (key == "leak") p.level_set.leak_checks = int(v);
         else if (key == "iters") p.level_set.max_iterations = int(v);
         else return false;
-    }
+        return true;
+    });
     opt.lobe_spec = spec;
-    return true;
+    return ok;
 }
 
 struct Input {
