@@ -76,10 +76,14 @@ Index first_non_finite(const core::BigVector<float>& d, std::size_t& count)
     return n_bad ? first : -1;
 }
 
-//! The 99.9th percentile of the non-zero values of `v` (all >= 0, max `vmax` > 0), exactly:
-//! a histogram finds the bin holding that rank, then nth_element sorts only that bin, so the
-//! cost is O(n) with no copy of the image.
-float robust_max(const core::BigVector<float>& v, float vmax)
+//! The value at a rank (0-based, ascending) among the values of `v` that `keep` counts, exactly
+//! the one nth_element over them would give: a histogram over [0, vmax] finds the bin holding
+//! that rank, then nth_element sorts only that bin, so the cost is O(n) with no copy of the image
+//! (a full nth_element on a 512 x 512 slice took 2 ms, as long as CDSG's band field). The counted
+//! values must lie in [0, vmax], vmax > 0; `rank_of(n)` gives the rank from their count n > 0.
+//! Returns 0 when nothing is counted.
+template <class V, class Keep, class RankOf>
+float select_rank(const V& v, float vmax, Keep keep, RankOf rank_of)
 {
     constexpr int kBins = 4096;
     const float to_bin = static_cast<float>(kBins) / vmax;
@@ -92,20 +96,19 @@ float robust_max(const core::BigVector<float>& v, float vmax)
 #pragma omp for schedule(static) nowait
         for (Index i = 0; i < n; ++i) {
             const float x = v[static_cast<std::size_t>(i)];
-            if (x > 0.f)
+            if (keep(x))
                 ++local[static_cast<std::size_t>(bin_of(x))];
         }
 #pragma omp critical
         for (int b = 0; b < kBins; ++b)
             hist[static_cast<std::size_t>(b)] += local[static_cast<std::size_t>(b)];
     }
-    std::size_t nonzero = 0;
+    std::size_t counted = 0;
     for (std::size_t h : hist)
-        nonzero += h;
-    if (nonzero == 0)
+        counted += h;
+    if (counted == 0)
         return 0.f;
-    // Rank (0-based) of the 99.9th percentile among the non-zero values.
-    const auto rank = static_cast<std::size_t>(std::ceil(0.999 * static_cast<double>(nonzero))) - 1;
+    const std::size_t rank = rank_of(counted);
     std::size_t below = 0;
     int b = 0;
     for (; b < kBins; ++b) {
@@ -116,11 +119,19 @@ float robust_max(const core::BigVector<float>& v, float vmax)
     std::vector<float> in_bin;
     in_bin.reserve(hist[static_cast<std::size_t>(b)]);
     for (float x : v)
-        if (x > 0.f && bin_of(x) == b)
+        if (keep(x) && bin_of(x) == b)
             in_bin.push_back(x);
     const auto nth = in_bin.begin() + static_cast<Index>(rank - below);
     std::nth_element(in_bin.begin(), nth, in_bin.end());
     return *nth;
+}
+
+//! The 99.9th percentile of the non-zero values of `v` (all >= 0, max `vmax` > 0), exactly.
+float robust_max(const core::BigVector<float>& v, float vmax)
+{
+    return select_rank(v, vmax, [](float x) { return x > 0.f; }, [](std::size_t nonzero) {
+        return static_cast<std::size_t>(std::ceil(0.999 * static_cast<double>(nonzero))) - 1;
+    });
 }
 
 } // namespace
@@ -373,10 +384,22 @@ core::ImageF energy_competition(const core::ImageF& edge, const core::LabelImage
 
 BinaryEdgeParams noise_adapted(const core::ImageF& f, const BinaryEdgeParams& base, double noise_factor)
 {
-    std::vector<float> v(f.data.begin(), f.data.end());
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    const double median = *mid;
+    // The median: element size/2 of the sorted values (the upper one of an even count).
+    float vmax = 0.f;
+    bool in_range = !f.data.empty();
+    for (float x : f.data) {
+        in_range = in_range && x >= 0.f && std::isfinite(x);
+        vmax = std::max(vmax, x);
+    }
+    double median = 0.0;
+    if (in_range && vmax > 0.f) {
+        median = select_rank(f.data, vmax, [](float) { return true; }, [](std::size_t n) { return n / 2; });
+    } else if (!(in_range && vmax == 0.f) && !f.data.empty()) { // negative or non-finite values: sort
+        std::vector<float> v(f.data.begin(), f.data.end());
+        const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+        std::nth_element(v.begin(), mid, v.end());
+        median = *mid;
+    }
     BinaryEdgeParams p = base;
     p.low = std::max(base.low, noise_factor * median);
     p.high = std::max(base.high, 2.0 * noise_factor * median);

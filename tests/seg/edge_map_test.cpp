@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <limits>
 #include <random>
+#include <utility>
+#include <vector>
 
 using namespace lobe;
 using seg::EdgeMapParams;
@@ -255,6 +257,43 @@ TEST(EdgeMap, EnergyCompetitionScalesOutsideTheAreaOfInterest)
     EXPECT_LOBE_ERROR(core::InvalidInputError, seg::energy_competition(f, core::LabelImage3D(grid(10, 9, 1)), 0.3f),
                       "different grids");
     EXPECT_LOBE_ERROR(core::InvalidInputError, seg::energy_competition(f, aoi, 1.5f), "[0, 1]");
+}
+
+TEST(EdgeMap, NoiseAdaptedThresholdsUseTheExactMedian)
+{
+    // The median comes from a histogram and a sort of one bin; it must be the very element a
+    // full nth_element gives (the thresholds then match bit for bit), with ties, zeros, odd and
+    // even counts, one value, and a few values far above the rest (most bins then stay empty).
+    const auto reference = [](const core::ImageF& f) {
+        std::vector<float> v(f.data.begin(), f.data.end());
+        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+        return double(v[v.size() / 2]);
+    };
+    const seg::BinaryEdgeParams base{0.01, 0.02};
+    std::mt19937 rng(11);
+    std::gamma_distribution<float> noise(1.0f, 0.01f);
+    for (const auto& [nx, ny] : {std::pair{97, 61}, std::pair{64, 64}, std::pair{1, 1}, std::pair{512, 512}}) {
+        core::ImageF f(grid(nx, ny, 1), 0.f);
+        for (auto& v : f.data)
+            v = std::min(1.f, noise(rng));
+        for (std::size_t i = 0; i < f.data.size(); i += 7)
+            f.data[i] = 0.f; // zeros and ties
+        if (f.data.size() > 10)
+            f.data[3] = 1.f; // far above the noise
+        const double median = reference(f);
+        const seg::BinaryEdgeParams p = seg::noise_adapted(f, base, 3.0);
+        EXPECT_EQ(p.low, std::max(base.low, 3.0 * median)) << nx << " x " << ny;
+        EXPECT_EQ(p.high, std::max({base.high, 6.0 * median, p.low})) << nx << " x " << ny;
+    }
+    // Values outside [0, inf) take the plain sort: the median is still the same element.
+    core::ImageF g(grid(5, 5, 1), 0.f);
+    for (std::size_t i = 0; i < g.data.size(); ++i)
+        g.data[i] = 0.01f * float(i) - 0.05f;
+    EXPECT_EQ(seg::noise_adapted(g, base, 3.0).low, std::max(base.low, 3.0 * reference(g)));
+    // A flat image: median 0, the configured thresholds stand.
+    const seg::BinaryEdgeParams flat = seg::noise_adapted(core::ImageF(grid(8, 8, 1), 0.f), base, 3.0);
+    EXPECT_EQ(flat.low, base.low);
+    EXPECT_EQ(flat.high, base.high);
 }
 
 TEST(EdgeMap, Timing512)
