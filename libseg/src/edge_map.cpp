@@ -386,19 +386,19 @@ BinaryEdgeParams noise_adapted(const core::ImageF& f, const BinaryEdgeParams& ba
 {
     // The median: element size/2 of the sorted values (the upper one of an even count).
     float vmax = 0.f;
-    bool in_range = !f.data.empty();
+    bool in_range = true;
     for (float x : f.data) {
         in_range = in_range && x >= 0.f && std::isfinite(x);
         vmax = std::max(vmax, x);
     }
-    double median = 0.0;
-    if (in_range && vmax > 0.f) {
-        median = select_rank(f.data, vmax, [](float) { return true; }, [](std::size_t n) { return n / 2; });
-    } else if (!(in_range && vmax == 0.f) && !f.data.empty()) { // negative or non-finite values: sort
+    double median = 0.0; // also for no values, or all zero
+    if (!in_range) {     // negative or non-finite values: sort
         std::vector<float> v(f.data.begin(), f.data.end());
         const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
         std::nth_element(v.begin(), mid, v.end());
         median = *mid;
+    } else if (vmax > 0.f) {
+        median = select_rank(f.data, vmax, [](float) { return true; }, [](std::size_t n) { return n / 2; });
     }
     BinaryEdgeParams p = base;
     p.low = std::max(base.low, noise_factor * median);

@@ -442,13 +442,13 @@ GvfResult gradient_vector_flow(const core::ImageF& edge, const core::LabelImage3
     const int dim = nz > 1 ? 3 : 2;
 
     // Compact band: voxel list in scan order (cache-friendly), row by row, so that every voxel's
-    // (i, j, k) and its row's place in the list are known without a search or a division.
+    // row and each row's place in the list are known without a search.
     const std::size_t rows = static_cast<std::size_t>(ny) * static_cast<std::size_t>(nz);
     std::vector<std::size_t> voxels;
-    std::vector<std::uint32_t> row_of;                 // per voxel: its grid row j + ny * k
-    std::vector<std::uint32_t> row_start(rows + 1, 0); // per row: where its voxels begin in the list
+    std::vector<std::uint32_t> row_of;              // per voxel: its grid row j + ny * k
+    std::vector<std::size_t> row_start(rows + 1, 0); // per row: where its voxels begin in the list
     for (std::size_t r = 0; r < rows; ++r) {
-        row_start[r] = static_cast<std::uint32_t>(std::min<std::size_t>(voxels.size(), std::numeric_limits<std::uint32_t>::max()));
+        row_start[r] = voxels.size();
         const std::size_t q0 = r * static_cast<std::size_t>(nx);
         for (std::size_t q = q0; q < q0 + static_cast<std::size_t>(nx); ++q)
             if (band.data[q] != 0) {
@@ -458,7 +458,7 @@ GvfResult gradient_vector_flow(const core::ImageF& edge, const core::LabelImage3
     }
     if (voxels.size() >= std::numeric_limits<std::uint32_t>::max())
         throw core::InvalidInputError("gradient_vector_flow: the band has more than 2^32 - 1 voxels");
-    row_start[rows] = static_cast<std::uint32_t>(voxels.size());
+    row_start[rows] = voxels.size();
     const std::size_t count = voxels.size();
     auto ijk_of = [&](std::size_t m) {
         const std::size_t r = row_of[m];
